@@ -1,0 +1,325 @@
+"""Symmetric period-one gaits by shooting (Newton on the step map), and their stability.
+
+A fixed point of the step map P (model.md section 4) is a symmetric gait. It is found by Newton's
+method on ``P(z) - z = 0`` with the exact AD Jacobian of :meth:`Walker.step`, damped by a
+backtracking line search. From no guess, :func:`find_gait` first solves the walker's planar
+reduction (d_y, I_xy, I_yz and w set to zero, phi = psi = 0; model.md section 5's advice) from a
+grid of starts, then follows the gait by natural-parameter continuation in a homotopy parameter
+s in [0, 1] from the planar-symmetric walker (s = 0) to the requested one (s = 1).
+
+Stability: eigenvalues of dP/dz at the fixed point (the stride map P o P has their squares). One
+eigenvalue is 0 because the state after a collision lies on the guard surface.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from .parameters import Params
+from .walker import STATE_NAMES, Step, StepFailure, Walker, is_planar_symmetric
+
+__all__ = ["Gait", "GaitNotFound", "find_gait", "planar_reduction", "solve_fixed_point"]
+
+# Newton on the fixed point: residual tolerance (max abs over the state, rad and rad/s scaled by
+# sqrt(l/g)) and iteration cap.
+_NEWTON_TOL = 1e-11
+_NEWTON_MAXIT = 40
+
+
+class GaitNotFound(RuntimeError):
+    """No gait was found; the message says what was tried and why it failed."""
+
+
+@dataclasses.dataclass
+class Gait:
+    """A symmetric period-one gait and its stability.
+
+    Attributes
+    ----------
+    params : Params
+    planar : bool
+        Solved in the planar reduction.
+    fixed_point : ndarray, shape (8,)
+        State just after heel strike (public order, model.md section 1).
+    step_time : float
+        (s)
+    step : Step
+        The step from the fixed point, with its Jacobian and recorded trajectory.
+    eigenvalues : ndarray, shape (8,), complex
+        Step-map eigenvalues, sorted by decreasing modulus (planar: the four lateral ones are 0).
+    eigenvectors : ndarray, shape (8, 8), complex
+        Columns matching ``eigenvalues``.
+    residual : float
+        max |P(z) - z| at the returned fixed point.
+    iterations : int
+    status : str
+        ``"converged"``.
+    """
+
+    params: Params
+    planar: bool
+    fixed_point: np.ndarray
+    step_time: float
+    step: Step
+    eigenvalues: np.ndarray
+    eigenvectors: np.ndarray
+    residual: float
+    iterations: int
+    status: str = "converged"
+
+    @property
+    def max_abs_eigenvalue(self) -> float:
+        """Largest step-map eigenvalue modulus; < 1 is asymptotically stable."""
+        return float(np.max(np.abs(self.eigenvalues)))
+
+    @property
+    def stable(self) -> bool:
+        return self.max_abs_eigenvalue < 1.0
+
+    def growth_factor(self, n_steps: int) -> float:
+        """|lambda_max|^n: how much the worst perturbation grows over n steps."""
+        return self.max_abs_eigenvalue**n_steps
+
+    @property
+    def stride_length(self) -> float:
+        """Advance per stride (two steps) along the ramp's fall line (m)."""
+        return 2.0 * float(self.step.contact[0])
+
+    @property
+    def stride_time(self) -> float:
+        return 2.0 * self.step_time
+
+    @property
+    def lean_amplitude(self) -> float:
+        """max |psi| over the step (rad)."""
+        return float(np.max(np.abs(self._series("psi"))))
+
+    @property
+    def steer_amplitude(self) -> float:
+        """max |phi| over the step (rad)."""
+        return float(np.max(np.abs(self._series("phi"))))
+
+    def _series(self, name: str) -> np.ndarray:
+        if self.planar:
+            return np.zeros(1)
+        index = {"phi": 0, "psi": 1}[name]
+        return self.step.states[:, index]
+
+    def dominant_components(self, k: int, n: int = 2) -> list[tuple[str, float]]:
+        """The ``n`` state components with the largest share of eigenvector ``k`` (name, share)."""
+        vec = np.abs(self.eigenvectors[:, k])
+        share = vec / max(vec.sum(), 1e-300)
+        order = np.argsort(share)[::-1][:n]
+        return [(STATE_NAMES[i], float(share[i])) for i in order]
+
+    def summary(self) -> dict:
+        """JSON-ready summary (keys of pipeline.md's ``toywalk gait --json``)."""
+        return {
+            "status": self.status,
+            "planar": self.planar,
+            "step_time": self.step_time,
+            "stride_time": self.stride_time,
+            "stride_length": self.stride_length,
+            "fixed_point": dict(zip(STATE_NAMES, map(float, self.fixed_point), strict=True)),
+            "eigenvalues": [
+                {"re": float(e.real), "im": float(e.imag), "abs": float(abs(e)),
+                 "dominant": [c for c, _ in self.dominant_components(i)]}
+                for i, e in enumerate(self.eigenvalues)
+            ],
+            "stride_eigenvalues": [{"re": float((e * e).real), "im": float((e * e).imag)}
+                                   for e in self.eigenvalues],
+            "max_abs_eigenvalue": self.max_abs_eigenvalue,
+            "stable": self.stable,
+            "growth_factor_20_steps": self.growth_factor(20),
+            "lean_amplitude": self.lean_amplitude,
+            "steer_amplitude": self.steer_amplitude,
+            "scuffs": self.step.scuffs,
+            "clearance": self.step.clearance,
+            "residual": self.residual,
+            "iterations": self.iterations,
+        }
+
+
+def planar_reduction(params: Params) -> Params:
+    """The planar-symmetric walker nearest to ``params``: d_y = I_xy = I_yz = 0, w = 0."""
+    return params.replace(**{"com_offset[1]": 0.0, "inertia[3]": 0.0, "inertia[5]": 0.0,
+                             "hip_width": 0.0})
+
+
+def solve_fixed_point(walker: Walker, z0: np.ndarray, tol: float = _NEWTON_TOL,
+                      maxit: int = _NEWTON_MAXIT) -> Gait:
+    """Newton's method on P(z) - z = 0 from ``z0``, damped by backtracking.
+
+    Raises
+    ------
+    GaitNotFound
+        The iteration failed (a step fell, or no convergence); the message says how.
+    """
+    active = [4, 5, 6, 7] if walker.planar else list(range(8))
+    scale = _state_scale(walker.params)
+    z = np.array(z0, dtype=float)
+    if walker.planar:
+        z[:4] = 0.0
+    try:
+        step = walker.step(z, jacobian=True)
+    except StepFailure as err:
+        raise GaitNotFound(f"the starting state does not complete a step ({err.status}: {err})") from err
+    res = (step.z_plus - z)[active]
+    norm = np.max(np.abs(res / scale[active]))
+    for it in range(1, maxit + 1):
+        if norm < tol:
+            return _make_gait(walker, z, it - 1)
+        jac = step.jacobian[np.ix_(active, active)] - np.eye(len(active))
+        try:
+            dz = np.linalg.solve(jac, -res)
+        except np.linalg.LinAlgError:
+            dz = np.linalg.lstsq(jac, -res, rcond=None)[0]
+        lam = 1.0
+        while lam > 1e-4:
+            trial = z.copy()
+            trial[active] += lam * dz
+            try:
+                s_trial = walker.step(trial, jacobian=True)
+            except StepFailure:
+                lam *= 0.5
+                continue
+            r_trial = (s_trial.z_plus - trial)[active]
+            n_trial = np.max(np.abs(r_trial / scale[active]))
+            if n_trial < norm or lam < 2e-4:
+                break
+            lam *= 0.5
+        else:
+            raise GaitNotFound(f"Newton's line search failed at residual {norm:.3g}")
+        z, step, res, norm = trial, s_trial, r_trial, n_trial
+    if norm < tol:
+        return _make_gait(walker, z, maxit)
+    raise GaitNotFound(f"Newton did not converge in {maxit} iterations (residual {norm:.3g})")
+
+
+def _state_scale(params: Params) -> np.ndarray:
+    rate = 1.0 / params.time_scale
+    return np.array([1.0, rate] * 4)
+
+
+def _make_gait(walker: Walker, z: np.ndarray, iterations: int) -> Gait:
+    step = walker.step(z, jacobian=True, record=True)
+    active = [4, 5, 6, 7] if walker.planar else list(range(8))
+    jac = step.jacobian
+    vals, vecs = np.linalg.eig(jac)
+    if walker.planar:  # the lateral block is absent: report zeros there, eigenvectors of the block
+        sub_vals, sub_vecs = np.linalg.eig(jac[np.ix_(active, active)])
+        vals = np.concatenate([sub_vals, np.zeros(4)])
+        vecs = np.zeros((8, 8), dtype=complex)
+        vecs[np.ix_(active, range(4))] = sub_vecs
+        vecs[np.arange(4), np.arange(4, 8)] = 1.0
+    order = np.argsort(-np.abs(vals), kind="stable")
+    residual = float(np.max(np.abs(step.z_plus - z)))
+    return Gait(params=walker.params, planar=walker.planar, fixed_point=z.copy(),
+                step_time=step.step_time, step=step, eigenvalues=vals[order],
+                eigenvectors=vecs[:, order], residual=residual, iterations=iterations)
+
+
+def _planar_starts(params: Params):
+    """Initial guesses for the planar gait, from the simplest walker's asymptotics (Garcia et al.
+    1998: stance angle ~ 0.970956 slope^(1/3), angular rate ~ stance angle in sqrt(g/l) units)."""
+    base = 0.970956 * abs(params.slope) ** (1.0 / 3.0)
+    rate_unit = 1.0 / params.time_scale
+    for factor in (1.0, 0.7, 1.4, 0.5, 2.0):
+        th = min(base * factor, 0.6)
+        for rate_ratio in (1.0, 0.6, 1.6):
+            thd = th * rate_ratio * rate_unit
+            z = np.zeros(8)
+            z[4], z[5], z[6], z[7] = -th, thd, th, thd * math.cos(2 * th)
+            yield z
+
+
+def find_gait(params: Params, z_guess: np.ndarray | None = None, planar: bool | None = None,
+              steps_per_time_unit: int = 16) -> Gait:
+    """Find the walker's symmetric gait.
+
+    Parameters
+    ----------
+    params : Params
+    z_guess : ndarray, shape (8,), optional
+        A start near the gait; without it the planar reduction is solved first and followed to
+        ``params`` by continuation.
+    planar : bool, optional
+        Solve in the planar reduction. Default: planar exactly when ``params`` is planar-symmetric
+        and its 3D mass matrix is singular in the lateral directions (point-mass limits).
+    steps_per_time_unit : int
+        Integration resolution (see :class:`Walker`).
+
+    Raises
+    ------
+    GaitNotFound
+        With what was tried.
+    """
+    if planar is None:
+        planar = is_planar_symmetric(params) and _lateral_singular(params)
+    walker = Walker(params, planar=planar, steps_per_time_unit=steps_per_time_unit)
+    if z_guess is not None:
+        return solve_fixed_point(walker, z_guess)
+    reduced = planar_reduction(params)
+    base = None
+    reasons = []
+    planar_walker = Walker(reduced, planar=True, steps_per_time_unit=steps_per_time_unit)
+    for z0 in _planar_starts(params):
+        try:
+            base = solve_fixed_point(planar_walker, z0)
+            break
+        except GaitNotFound as err:
+            reasons.append(str(err))
+    if base is None:
+        raise GaitNotFound(
+            f"no planar gait found from {len(reasons)} starts near the simplest walker's "
+            f"(last: {reasons[-1] if reasons else 'none'})"
+        )
+    if planar:
+        return base
+    return continue_gait(reduced, params, base.fixed_point, steps_per_time_unit)
+
+
+def continue_gait(start: Params, end: Params, z_start: np.ndarray, steps_per_time_unit: int = 16,
+                  min_ds: float = 1e-3) -> Gait:
+    """Follow a gait from parameter set ``start`` (gait ``z_start``) to ``end`` along the straight
+    line in parameter space, halving the step on failure (natural-parameter continuation)."""
+    pa, pb = start.vector(), end.vector()
+    s, ds = 0.0, 0.25
+    z = np.array(z_start, dtype=float)
+    gait = None
+    while s < 1.0:
+        s_new = min(1.0, s + ds)
+        trial = _params_at(end, pa + s_new * (pb - pa))
+        try:
+            gait = solve_fixed_point(Walker(trial, steps_per_time_unit=steps_per_time_unit), z)
+        except GaitNotFound as err:
+            ds *= 0.5
+            if ds < min_ds:
+                raise GaitNotFound(
+                    f"continuation from the planar gait stalled at s = {s:.4f} of 1 ({err})"
+                ) from err
+            continue
+        z, s = gait.fixed_point, s_new
+        ds = min(0.5, ds * 1.5)
+    if gait is None:
+        gait = solve_fixed_point(Walker(end, steps_per_time_unit=steps_per_time_unit), z)
+    return gait
+
+
+def _params_at(template: Params, vector: np.ndarray) -> Params:
+    from .parameters import PARAMETER_NAMES
+
+    return template.replace(**dict(zip(PARAMETER_NAMES, map(float, vector), strict=True)))
+
+
+def _lateral_singular(params: Params) -> bool:
+    """True when the 3D mass matrix is (numerically) singular at the upright configuration."""
+    from .engine import engine
+
+    x = np.zeros(10)
+    m_mat = np.array(engine(False).k["mass_matrix"](x, params.vector())[0])
+    scale = params.total_mass * params.leg_length**2
+    return bool(np.linalg.eigvalsh(0.5 * (m_mat + m_mat.T))[0] < 1e-8 * scale)

@@ -1,0 +1,365 @@
+"""The walker: right-hand side, energy, one step (flow to the guard, collision, mirror) and its Jacobian.
+
+:class:`Walker` joins a parameter set to the compiled kernels of :mod:`toywalk.model.engine`.
+Public states use the seed's order (model.md section 1)::
+
+    z = (phi, phi_dot, psi, psi_dot, theta_st, theta_st_dot, theta_sw, theta_sw_dot)   shape (8,)
+
+The step map P = mirror o collision o flow-to-guard (model.md section 4) is evaluated by integrating
+with a fixed step dt until the guard is crossed (the swing foot's lowest point reaches the ramp,
+moving down, after it has passed in front of the stance foot), then solving for the length of the
+last step by Newton's method. Its Jacobian is exact for the numerical flow: AD through the steps,
+the implicit-function correction for the variable step time (the saltation term), and the collision.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from .engine import SCAN, engine
+from .parameters import Params
+
+__all__ = ["STATE_NAMES", "Step", "StepFailure", "Walker"]
+
+#: Public state order (model.md section 1).
+STATE_NAMES = (
+    "phi", "phi_dot", "psi", "psi_dot", "theta_st", "theta_st_dot", "theta_sw", "theta_sw_dot",
+)
+
+# Public index -> internal index (3D internal state: phi, psi, th_st, th_sw, then the rates).
+_PUB_TO_INT_3D = np.array([0, 4, 1, 5, 2, 6, 3, 7])
+# Newton on the last step's length: |h| target (relative to the leg length) and iteration cap.
+_GUARD_TOL = 1e-14
+_GUARD_MAXIT = 30
+
+
+class StepFailure(RuntimeError):
+    """A step did not end in a heel strike; ``status`` says why, ``trajectory`` holds what was done."""
+
+    def __init__(self, status: str, message: str, trajectory: tuple[np.ndarray, np.ndarray] | None = None):
+        super().__init__(message)
+        self.status = status
+        self.trajectory = trajectory
+
+
+@dataclasses.dataclass
+class Step:
+    """One step from just after a heel strike to just after the next (mirrored).
+
+    Attributes
+    ----------
+    z_plus : ndarray, shape (8,)
+        State just after the next heel strike, relabelled and mirrored (public order).
+    step_time : float
+        Duration of the step (s).
+    z_minus : ndarray, shape (8,)
+        State just before the heel strike (not mirrored, old labels).
+    contact : ndarray, shape (2,)
+        New contact point relative to the old one (m), in the step's (unmirrored) ramp frame.
+    scuffs : int
+        Downward crossings of the ramp by the swing foot before it passed the stance foot.
+    clearance : float
+        Minimum swing-foot height (m) between the legs passing and heel strike.
+    jacobian : ndarray, shape (8, 8) or None
+        dz_plus / dz_0 when requested.
+    jacobian_params : ndarray, shape (8, 17) or None
+        dz_plus / dp when requested.
+    time_gradient : ndarray, shape (8,) or None
+        d step_time / dz_0 when requested.
+    time_gradient_params : ndarray, shape (17,) or None
+        d step_time / dp when requested.
+    times, states : ndarray, shapes (n,), (n, nx) or None
+        Samples of the internal state on the integration grid, with the end state, when requested.
+    """
+
+    z_plus: np.ndarray
+    step_time: float
+    z_minus: np.ndarray
+    contact: np.ndarray
+    scuffs: int
+    clearance: float
+    jacobian: np.ndarray | None = None
+    jacobian_params: np.ndarray | None = None
+    time_gradient: np.ndarray | None = None
+    time_gradient_params: np.ndarray | None = None
+    times: np.ndarray | None = None
+    states: np.ndarray | None = None
+
+
+class Walker:
+    """A parameter set with the compiled equations of the 3D (or planar) walker.
+
+    Parameters
+    ----------
+    params : Params
+        The walker.
+    planar : bool
+        Use the planar reduction (phi = psi = 0 held; model.md section 7). Only valid when the
+        walker is planar-symmetric (d_y = 0, I_xy = I_yz = 0, w = 0); required for point-mass
+        limits whose 3D mass matrix is singular in the lateral directions.
+    steps_per_time_unit : int
+        Integration steps per sqrt(l/g) time unit. The default (16) gives a step map accurate to
+        about 1e-12 for the bundled walkers (tests/model/test_stepmap.py checks convergence).
+    max_step_time : float
+        A step that has not ended after this many sqrt(l/g) time units is a failure.
+    """
+
+    def __init__(self, params: Params, planar: bool = False, steps_per_time_unit: int = 16,
+                 max_step_time: float = 20.0):
+        if not isinstance(params, Params):
+            raise TypeError(f"params must be a Params, got {type(params).__name__}")
+        if planar and not is_planar_symmetric(params):
+            raise ValueError(
+                "planar=True needs a planar-symmetric walker (com_offset[1] = 0, inertia xy = yz = 0, "
+                "hip_width = 0)"
+            )
+        if steps_per_time_unit < 1:
+            raise ValueError(f"steps_per_time_unit must be >= 1, got {steps_per_time_unit!r}")
+        self.params = params
+        self.planar = planar
+        self.p = params.vector()
+        self.eng = engine(planar)
+        self.lay = self.eng.lay
+        self.dt = params.time_scale / steps_per_time_unit
+        self.max_step_time = max_step_time * params.time_scale
+
+    # --------------------------------------------------------------------------- state layout
+    def to_internal(self, z: np.ndarray) -> np.ndarray:
+        """Internal dynamic state (q, u) from a public state z, shape (8,)."""
+        z = _checked_state(z)
+        if self.planar:
+            return z[[4, 6, 5, 7]]
+        out = np.empty(8)
+        out[_PUB_TO_INT_3D] = z
+        return out
+
+    def to_public(self, xi: np.ndarray) -> np.ndarray:
+        """Public state z, shape (8,), from an internal dynamic state (q, u)."""
+        xi = np.asarray(xi, dtype=float)
+        if self.planar:
+            z = np.zeros(8)
+            z[[4, 6, 5, 7]] = xi[:4]
+            return z
+        return xi[:8][_PUB_TO_INT_3D]
+
+    def _jac_to_public(self, jac: np.ndarray) -> np.ndarray:
+        """Map a Jacobian of internal dynamic states (rows and columns) to public order."""
+        if self.planar:
+            out = np.zeros((8, 8))
+            idx = [4, 6, 5, 7]
+            out[np.ix_(idx, idx)] = jac
+            return out
+        return jac[np.ix_(_PUB_TO_INT_3D, _PUB_TO_INT_3D)]
+
+    def _rows_to_public(self, rows: np.ndarray) -> np.ndarray:
+        if self.planar:
+            out = np.zeros((8,) + rows.shape[1:])
+            out[[4, 6, 5, 7]] = rows
+            return out
+        return rows[_PUB_TO_INT_3D]
+
+    def _cols_to_public(self, cols: np.ndarray) -> np.ndarray:
+        if self.planar:
+            out = np.zeros(cols.shape[:-1] + (8,))
+            out[..., [4, 6, 5, 7]] = cols
+            return out
+        return cols[..., _PUB_TO_INT_3D]
+
+    def full_state(self, z: np.ndarray, contact=(0.0, 0.0)) -> np.ndarray:
+        """Internal state (q, u, contact travel), shape (nx,)."""
+        xi = self.to_internal(z)
+        travel = np.asarray(contact, dtype=float)[: self.lay.nx - self.lay.n_dyn]
+        return np.concatenate([xi, travel])
+
+    # --------------------------------------------------------------------------- pointwise
+    def rhs(self, x: np.ndarray) -> np.ndarray:
+        """Internal state derivative, shape (nx,), at internal state x."""
+        return self.eng.k["rhs"](x, self.p)[0].ravel().copy()
+
+    def energy(self, x: np.ndarray) -> float:
+        """Total energy (J): kinetic plus gravitational, with the contact travel, at internal state x."""
+        return float(self.eng.k["energy"](x, self.p)[0][0, 0])
+
+    def guard(self, x: np.ndarray) -> tuple[float, float]:
+        """(swing-foot height over the ramp, its distance ahead of the stance contact) (m)."""
+        g = self.eng.k["guard"](x, self.p)[0].ravel()
+        return float(g[0]), float(g[1])
+
+    def points(self, x: np.ndarray) -> np.ndarray:
+        """The walker's points relative to the stance contact, shape (9, 3) (m).
+
+        Rows: stance contact C, stance foot centre O1, stance hip H1, axle, swing hip H2, swing foot
+        centre O2, swing foot's lowest point C2, stance-leg COM G1, swing-leg COM G2.
+        """
+        return self.eng.k["points"](x, self.p)[0].T.copy()
+
+    def collide(self, z_minus: np.ndarray) -> np.ndarray:
+        """Collision, relabel and mirror of a public state just before heel strike; shape (8,)."""
+        x = self.full_state(z_minus)
+        return self.to_public(self.eng.k["collision"](x, self.p)[0].ravel())
+
+    # --------------------------------------------------------------------------- one step
+    def step(self, z0: np.ndarray, jacobian: bool = False, params_jacobian: bool = False,
+             record: bool = False) -> Step:
+        """Integrate from just after a heel strike to just after the next one (the step map).
+
+        Parameters
+        ----------
+        z0 : ndarray, shape (8,)
+            Public state just after a heel strike (stance leg = left, after mirroring).
+        jacobian : bool
+            Also compute dz_plus/dz0 and d step_time/dz0 by AD.
+        params_jacobian : bool
+            Also compute dz_plus/dp (p in the order of ``PARAMETER_NAMES``); implies ``jacobian``.
+        record : bool
+            Also return the samples of the internal state on the integration grid.
+
+        Raises
+        ------
+        StepFailure
+            ``status`` is ``"fell"`` (a hip or the centre of mass reached the ramp) or
+            ``"no_heel_strike"`` (no heel strike within ``max_step_time``).
+        """
+        x0 = self.full_state(z0)
+        return self._step_internal(x0, jacobian or params_jacobian, params_jacobian, record)
+
+    def _step_internal(self, x0: np.ndarray, jacobian: bool = False, params_jacobian: bool = False,
+                       record: bool = False) -> Step:
+        k, p, dt, lay = self.eng.k, self.p, self.dt, self.lay
+        g_prev = k["probe"](x0, p)[0].ravel().copy()
+        x = x0.copy()
+        n_done = 0
+        scuffs = 0
+        # A heel strike needs the swing foot to come from behind the stance foot: a state whose
+        # swing foot is not behind at the start (legs together) cannot start a step.
+        if not g_prev[1] < 0.0:
+            raise StepFailure(
+                "no_heel_strike",
+                f"the swing foot must start behind the stance foot (it is {g_prev[1]:.3g} m ahead)",
+            )
+        passed = False
+        clearance = math.inf
+        blocks = [x0[None, :].copy()] if record else None
+        n_max = int(math.ceil(self.max_step_time / dt))
+        while True:
+            if n_done >= n_max:
+                raise StepFailure("no_heel_strike", f"no heel strike within {self.max_step_time:.4g} s",
+                                  self._partial(blocks))
+            xs, gs = (a.copy() for a in k["scan"](x, dt, p))
+            h, ahead, low = gs
+            if not np.all(np.isfinite(xs)):
+                raise StepFailure("fell", "the state became non-finite", self._partial(blocks))
+            h_prev = np.concatenate([[g_prev[0]], h[:-1]])
+            crossing = (h <= 0.0) & (h_prev > 0.0)
+            events = np.flatnonzero(crossing | (low <= 0.0))
+            j_hit = None
+            for j in events:
+                if low[j] <= 0.0:
+                    if record:
+                        blocks.append(xs[:, : j + 1].T)
+                    raise StepFailure(
+                        "fell",
+                        f"a hip or the centre of mass reached the ramp at t = {(n_done + j + 1) * dt:.4g} s",
+                        self._partial(blocks),
+                    )
+                if ahead[j] > 0.0:
+                    j_hit = int(j)
+                    break
+                scuffs += 1
+            upto = SCAN if j_hit is None else j_hit
+            # Clearance: swing-foot height once it is ahead of the stance foot (legs passed).
+            seen = ahead[:upto] > 0.0
+            if passed or np.any(seen):
+                first = 0 if passed else int(np.argmax(seen))
+                if upto > first:
+                    clearance = min(clearance, float(np.min(h[first:upto])))
+                passed = True
+            if j_hit is not None:
+                break
+            if record:
+                blocks.append(xs.T)
+            x = xs[:, -1].copy()
+            g_prev = gs[:, -1]
+            n_done += SCAN
+        hit = n_done + j_hit  # the crossing lies inside integration step number `hit` (0-based)
+        x_before = xs[:, j_hit - 1].copy() if j_hit > 0 else x.copy()
+        if record:
+            blocks.append(xs[:, :j_hit].T)
+        h_before = h_prev[j_hit]
+        # Newton on the last step's length tau in (0, dt]: h(step(x_before, tau)) = 0.
+        tau = dt * h_before / (h_before - h[j_hit])
+        for _ in range(_GUARD_MAXIT):
+            g, dh, xt = k["final"](x_before, tau, p)
+            if abs(g[0, 0]) <= _GUARD_TOL * self.params.leg_length:
+                break
+            tau = tau - g[0, 0] / dh[0, 0]
+        else:
+            raise StepFailure("no_heel_strike", "the heel-strike time did not converge")
+        x_t = xt.ravel().copy()
+        step_time = hit * dt + tau
+        x_plus = k["collision"](x_t, p)[0].ravel().copy()
+        travel = slice(lay.n_dyn, lay.nx)
+        contact = np.zeros(2)
+        contact[: lay.nx - lay.n_dyn] = x_plus[travel] - x0[travel]
+        out = Step(
+            z_plus=self.to_public(x_plus),
+            step_time=float(step_time),
+            z_minus=self.to_public(x_t),
+            contact=contact,
+            scuffs=scuffs,
+            clearance=float(clearance),
+        )
+        if record:
+            blocks.append(x_t[None, :])
+            out.states = np.concatenate(blocks)
+            out.times = np.concatenate([np.arange(hit + 1) * dt, [step_time]])
+        if jacobian:
+            self._step_jacobian(x0, hit, x_before, tau, x_t, out, params_jacobian)
+        return out
+
+    def _partial(self, blocks):
+        if blocks is None:
+            return None
+        states = np.concatenate(blocks)
+        return np.arange(len(states)) * self.dt, states
+
+    def _step_jacobian(self, x0, n_full, x_before, tau, x_t, out: Step, params: bool) -> None:
+        """Chain rule through the full steps, the last step (with the implicit guard time) and the
+        collision: dx_T/dx0 = S_x Phi + S_tau dtau/dx0, dtau/dx0 = -h_x S_x Phi / (h_x S_tau)."""
+        k, p, dt = self.eng.k, self.p, self.dt
+        nd = self.lay.n_dyn
+        _, phi_x, phi_p = self.eng.chunk_jacobian(x0, n_full, dt, p, params=params)
+        _, s_x, s_tau, s_p = (a.copy() for a in k["final_jac"](x_before, tau, p))
+        s_tau = s_tau.ravel()
+        _, h_x, h_p = (a.copy().ravel() for a in k["guard_jac"](x_t, p))
+        _, c_x, c_p = (a.copy() for a in k["collision_jac"](x_t, p))
+        denom = h_x @ s_tau
+        dxt_dx0 = s_x @ phi_x
+        dtau_dx0 = -(h_x @ dxt_dx0) / denom
+        dxt_dx0 = dxt_dx0 + np.outer(s_tau, dtau_dx0)
+        out.jacobian = self._jac_to_public((c_x @ dxt_dx0)[:nd, :nd])
+        out.time_gradient = self._cols_to_public(dtau_dx0[:nd])
+        if params:
+            dxt_dp = s_x @ phi_p + s_p
+            dtau_dp = -(h_x @ dxt_dp + h_p) / denom
+            dxt_dp = dxt_dp + np.outer(s_tau, dtau_dp)
+            out.jacobian_params = self._rows_to_public((c_x @ dxt_dp + c_p)[:nd])
+            out.time_gradient_params = dtau_dp
+
+
+def is_planar_symmetric(params: Params) -> bool:
+    """True when motion with phi = psi = 0 is invariant (model.md section 7)."""
+    i = params.inertia
+    return params.com_offset[1] == 0.0 and i[3] == 0.0 and i[5] == 0.0 and params.hip_width == 0.0
+
+
+def _checked_state(z) -> np.ndarray:
+    z = np.asarray(z, dtype=float)
+    if z.shape != (8,):
+        raise ValueError(f"a walker state has 8 components {STATE_NAMES}, got shape {z.shape}")
+    if not np.all(np.isfinite(z)):
+        raise ValueError(f"a walker state must be finite, got {z.tolist()}")
+    return z
