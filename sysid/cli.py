@@ -1,0 +1,248 @@
+"""The ``toywalk`` command line (pipeline.md, "Command line").
+
+Every command exits non-zero with one clear line on stderr for bad input, and never leaves a
+half-written output file behind. Commands of later stages (calibrate, render, track, fit, sample,
+diagnose) are added as those stages land.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["main"]
+
+_DATA = Path(__file__).resolve().parents[1] / "data"
+
+
+class CommandError(Exception):
+    """Bad input or an impossible request: printed as one line, exit status 2."""
+
+
+def _load(path: str):
+    from toywalk.model.parameters import ParameterError, load_params
+
+    try:
+        return load_params(path)
+    except ParameterError as err:
+        raise CommandError(str(err)) from err
+
+
+def _find_gait(params):
+    from toywalk.model.gait import GaitNotFound, find_gait
+
+    try:
+        return find_gait(params)
+    except GaitNotFound as err:
+        raise CommandError(f"no gait found: {err}") from err
+
+
+def _gait_report(params, gait) -> dict:
+    from toywalk.model.statics import can_stand
+
+    report = gait.summary()
+    standing = can_stand(params)
+    report["can_stand"] = bool(standing.can_stand)
+    report["standing"] = standing.reason
+    report["units"] = {"step_time": "s", "stride_length": "m", "angles": "rad",
+                       "rates": "rad/s", "clearance": "m"}
+    return report
+
+
+def _print_gait(report: dict, out=sys.stdout) -> None:
+    fp = report["fixed_point"]
+    print(f"status            {report['status']}{' (planar reduction)' if report['planar'] else ''}",
+          file=out)
+    print(f"step time         {report['step_time']:.6g} s  (stride {report['stride_time']:.6g} s)",
+          file=out)
+    print(f"stride length     {report['stride_length']:.6g} m", file=out)
+    print(f"lean amplitude    {math.degrees(report['lean_amplitude']):.4g} deg", file=out)
+    print(f"steer amplitude   {math.degrees(report['steer_amplitude']):.4g} deg", file=out)
+    print("fixed point (just after heel strike):", file=out)
+    for name, value in fp.items():
+        print(f"  {name:<14s} {value: .10g}", file=out)
+    print("step-map eigenvalues (|lambda|, dominant components):", file=out)
+    for e in report["eigenvalues"]:
+        print(f"  {e['re']: .6f} {e['im']:+.6f}i   |{e['abs']:.6f}|   {', '.join(e['dominant'])}",
+              file=out)
+    verdict = "stable" if report["stable"] else "unstable"
+    print(f"max |eigenvalue|  {report['max_abs_eigenvalue']:.6g} ({verdict}; over 20 steps a "
+          f"perturbation grows by {report['growth_factor_20_steps']:.3g})", file=out)
+    print(f"swing clearance   {report['clearance']:.4g} m; scuffs per step {report['scuffs']}", file=out)
+    print(f"can stand         {report['can_stand']}: {report['standing']}", file=out)
+
+
+def cmd_gait(args) -> int:
+    params = _load(args.params)
+    gait = _find_gait(params)
+    report = _gait_report(params, gait)
+    if args.json:
+        json.dump(report, sys.stdout, indent=2, default=float)
+        sys.stdout.write("\n")
+    else:
+        _print_gait(report)
+    return 0
+
+
+def cmd_effects(args) -> int:
+    from toywalk.model.effects import EFFECTS
+
+    rows = [
+        {"name": e.name, "unit": e.unit, "null": e.null, "typical": e.typical, "physics": e.physics}
+        for e in EFFECTS.values()
+    ]
+    if args.json:
+        json.dump(rows, sys.stdout, indent=2)
+        sys.stdout.write("\n")
+    elif not rows:
+        print("no effects are registered yet: the model is the seed's (model.md section 6)")
+    else:
+        for r in rows:
+            print(f"{r['name']:<24s} [{r['unit']}] null {r['null']}, typical {r['typical']}: {r['physics']}")
+    return 0
+
+
+def _parse_effects(items) -> dict:
+    out = {}
+    for item in items or ():
+        if "=" not in item:
+            raise CommandError(f"--effect expects NAME=VALUE, got {item!r}")
+        name, value = item.split("=", 1)
+        try:
+            out[name.strip()] = float(value)
+        except ValueError as err:
+            raise CommandError(f"--effect {name}: not a number: {value!r}") from err
+    return out
+
+
+def _simulate_to_file(params, steps: int, out: Path, noise: float, seed, source: str) -> dict:
+    from toywalk.model.simulate import simulate
+    from toywalk.model.trajectory import TrajectoryTable, write_trajectory
+
+    gait = _find_gait(params)
+    traj = simulate(params, gait.fixed_point, steps, planar=gait.planar, progress=sys.stderr.isatty())
+    rng = np.random.default_rng(seed)
+    left, right = traj.pitches()
+    signals = {"lean": traj.lean, "steer": traj.steer, "pitch_left": left, "pitch_right": right}
+    if noise > 0:
+        signals = {k: v + rng.normal(0.0, noise, size=v.shape) for k, v in signals.items()}
+        signals.update({f"{k}_sd": np.full(v.shape, noise) for k, v in list(signals.items())})
+    signals["contact_x"] = traj.contact[:, 0]
+    signals["contact_y"] = traj.contact[:, 1]
+    from toywalk.model.parameters import PARAMETER_NAMES
+
+    metadata = {
+        "source": {"kind": "simulation", "parameters": source,
+                   "parameter_values": dict(zip(PARAMETER_NAMES, params.vector().tolist(), strict=True)),
+                   "effects": dict(params.effects), "seed": seed, "steps": steps,
+                   "start": "gait fixed point", "planar": gait.planar},
+        "units": {"time": "s", "angles": "rad", "contact": "m"},
+        "noise_sd": noise,
+        "timestamps": "exact simulation times, uniform sampling",
+        "status": traj.status, "message": traj.message,
+        "scuffs": traj.scuffs, "min_clearance_m": traj.min_clearance,
+        "software": _version(),
+    }
+    events = [{"time": e.time, "foot": e.foot, "x": e.x, "y": e.y} for e in traj.events]
+    table = TrajectoryTable(traj.times, signals, traj.stance, events, metadata)
+    write_trajectory(table, out)
+    return {"status": traj.status, "message": traj.message, "samples": len(traj.times),
+            "heel_strikes": len(events)}
+
+
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return f"toywalk {version('toywalk')}"
+    except PackageNotFoundError:
+        return "toywalk (not installed)"
+
+
+def cmd_simulate(args) -> int:
+    params = _load(args.params)
+    effects = _parse_effects(args.effect)
+    if effects:
+        from toywalk.model.parameters import ParameterError
+
+        try:
+            params = params.replace(**{f"effects.{k}": v for k, v in effects.items()})
+        except ParameterError as err:
+            raise CommandError(str(err)) from err
+    if args.steps < 1:
+        raise CommandError(f"--steps must be >= 1, got {args.steps}")
+    if not (args.noise >= 0 and math.isfinite(args.noise)):
+        raise CommandError(f"--noise must be a finite standard deviation >= 0 (rad), got {args.noise}")
+    out = Path(args.out)
+    if out.suffix != ".csv":
+        raise CommandError(f"--out must name a .csv file, got {out}")
+    if not out.parent.exists():
+        raise CommandError(f"output folder does not exist: {out.parent}")
+    info = _simulate_to_file(params, args.steps, out, args.noise, args.seed, str(args.params))
+    print(f"{info['status']}: {info['message']}; {info['samples']} samples, "
+          f"{info['heel_strikes']} heel strikes -> {out}")
+    return 0 if info["status"] == "completed" else 1
+
+
+def cmd_demo(args) -> int:
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    path = _DATA / "params" / "compass-3d.toml"
+    if not path.exists():
+        raise CommandError(f"bundled parameter file not found: {path}")
+    params = _load(str(path))
+    print(f"toywalk demo: the 3D walker of {path.name} (the Tinkertoy's own parameters come with "
+          "the gait-fitting stage)\n")
+    gait = _find_gait(params)
+    report = _gait_report(params, gait)
+    _print_gait(report)
+    (out / "gait.json").write_text(json.dumps(report, indent=2, default=float) + "\n")
+    info = _simulate_to_file(params, 20, out / "walk.csv", 0.0, 0, str(path))
+    print(f"\nsimulated 20 steps: {info['status']}; trajectory in {out / 'walk.csv'}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="toywalk", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True)
+    p = sub.add_parser("gait", help="find the symmetric gait and its stability")
+    p.add_argument("--params", required=True, help="parameter TOML file")
+    p.add_argument("--json", action="store_true", help="machine-readable output")
+    p.set_defaults(func=cmd_gait)
+    p = sub.add_parser("effects", help="list the effect library")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_effects)
+    p = sub.add_parser("simulate", help="simulate steps from the gait and write a trajectory")
+    p.add_argument("--params", required=True)
+    p.add_argument("--steps", type=int, required=True)
+    p.add_argument("--effect", action="append", metavar="NAME=VALUE")
+    p.add_argument("--noise", type=float, default=0.0, help="measurement noise SD added to angles (rad)")
+    p.add_argument("--seed", type=int, default=None)
+    p.add_argument("--out", required=True, help="trajectory file NAME.csv")
+    p.set_defaults(func=cmd_simulate)
+    p = sub.add_parser("demo", help="run the main job on bundled data")
+    p.add_argument("--out", default="out/demo")
+    p.set_defaults(func=cmd_demo)
+    return parser
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args)
+    except CommandError as err:
+        print(f"toywalk {args.command}: error: {err}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"toywalk {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())
