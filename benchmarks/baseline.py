@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.integrate import solve_ivp
-
 from toywalk.model.walker import Walker
 
 __all__ = ["ScipyStepMap"]
