@@ -1,1 +1,24 @@
+"""The walker model: parameters, equations of motion, collision, step map, gaits, simulation."""
 
+from .gait import Gait, GaitNotFound, find_gait, solve_fixed_point
+from .parameters import PARAMETER_NAMES, ParameterError, Params, load_params, save_params
+from .simulate import Trajectory, simulate
+from .walker import STATE_NAMES, Step, StepFailure, Walker
+
+__all__ = [
+    "PARAMETER_NAMES",
+    "STATE_NAMES",
+    "Gait",
+    "GaitNotFound",
+    "ParameterError",
+    "Params",
+    "Step",
+    "StepFailure",
+    "Trajectory",
+    "Walker",
+    "find_gait",
+    "load_params",
+    "save_params",
+    "simulate",
+    "solve_fixed_point",
+]

@@ -41,7 +41,9 @@ def _compiler() -> str | None:
     return os.environ.get("CC") or shutil.which("gcc") or shutil.which("cc")
 
 
-def compile_functions(name: str, functions: dict[str, ca.Function], verbose: bool = True) -> dict[str, ca.Function]:
+def compile_functions(
+    name: str, functions: dict[str, ca.Function], verbose: bool = True
+) -> dict[str, ca.Function]:
     """Native versions of ``functions`` (same names, inputs and outputs), compiled once and cached.
 
     Parameters

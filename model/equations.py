@@ -234,7 +234,7 @@ def _collision_exprs(sym: Symbolic) -> tuple[ca.SX, ca.SX]:
     the hip axis through its hip point H1, both with absolute velocities. The planar system keeps
     the n-component of (a). Returns ``(u_plus, residuals_function_inputs)``.
     """
-    lay, q, u, p, e = sym.lay, sym.q, sym.u, sym.p, sym.exprs
+    lay, q, p, e = sym.lay, sym.q, sym.p, sym.exprs
     m, mh = p[4], p[5]
     q4 = _embed(lay, q)
     up = ca.SX.sym("u_plus", lay.nq)

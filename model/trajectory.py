@@ -137,7 +137,9 @@ def read_trajectory(path: str | Path) -> TrajectoryTable:
                 try:
                     out[r] = float(cell)
                 except ValueError as err:
-                    raise ValueError(f"{csv_path}: row {r + 2}, column {name}: not a number: {cell!r}") from err
+                    raise ValueError(
+                        f"{csv_path}: row {r + 2}, column {name}: not a number: {cell!r}"
+                    ) from err
         return out
 
     time = column("time")

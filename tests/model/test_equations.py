@@ -4,7 +4,6 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 from scipy.integrate import solve_ivp
-
 from toywalk.model.parameters import Params
 from toywalk.model.walker import Walker
 

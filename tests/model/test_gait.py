@@ -3,7 +3,6 @@
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
-
 from toywalk.model.gait import find_gait, solve_fixed_point
 from toywalk.model.parameters import load_params
 from toywalk.model.walker import Walker
