@@ -108,10 +108,15 @@ class Engine:
         x_next = rk8_step(rhs, x, dt, p)
         step = ca.Function("step", [x, dt, p], [x_next], ["x", "dt", "p"], ["x_next"])
         sym = base["points"](x, p)
-        # Lowest of the hips and the whole walker's centre of mass over the ramp: fallen below 0.
+        # Fallen when a hip, the whole walker's centre of mass, or a leg's centre of mass (the
+        # balance mass) reaches the ramp. A leg whose mass sits inside its foot (|G - O| <= r, as
+        # for the simplest walker's point-mass feet) is exempt: that is the foot, not a fall.
         m, mh = p[4], p[5]
         com_z = (m * (sym[2, 7] + sym[2, 8]) + mh * sym[2, 3]) / (2 * m + mh)
-        low = ca.fmin(ca.fmin(sym[2, 2], sym[2, 4]), com_z)
+        foot_centre = ca.vertcat(0, 0, -(p[0] - p[1]))
+        in_foot = ca.norm_2(p[6:9] - foot_centre) <= p[1] + 1e-9 * p[0]
+        legs_z = ca.if_else(in_foot, ca.inf, ca.fmin(sym[2, 7], sym[2, 8]))
+        low = ca.fmin(ca.fmin(ca.fmin(sym[2, 2], sym[2, 4]), com_z), legs_z)
         probe = ca.Function("probe", [x, p], [ca.vertcat(guard(x, p), low)], ["x", "p"], ["g"])
         scan_step = ca.Function(
             "scan_step", [x, dt, p], [x_next, probe(x_next, p)], ["x", "dt", "p"], ["x_next", "g"]

@@ -109,8 +109,12 @@ class Gait:
         return self.step.states[:, index]
 
     def dominant_components(self, k: int, n: int = 2) -> list[tuple[str, float]]:
-        """The ``n`` state components with the largest share of eigenvector ``k`` (name, share)."""
-        vec = np.abs(self.eigenvectors[:, k])
+        """The ``n`` state components with the largest share of eigenvector ``k`` (name, share).
+
+        Rates are measured in rad per sqrt(l/g), angles in rad, so that the shares compare like
+        with like (a rate in rad/s of a small, fast walker would otherwise always dominate).
+        """
+        vec = np.abs(self.eigenvectors[:, k]) / _state_scale(self.params)
         share = vec / max(vec.sum(), 1e-300)
         order = np.argsort(share)[::-1][:n]
         return [(STATE_NAMES[i], float(share[i])) for i in order]
@@ -170,13 +174,23 @@ def solve_fixed_point(walker: Walker, z0: np.ndarray, tol: float = _NEWTON_TOL,
     res = (step.z_plus - z)[active]
     norm = np.max(np.abs(res / scale[active]))
     for it in range(1, maxit + 1):
-        if norm < tol:
-            return _make_gait(walker, z, it - 1)
         jac = step.jacobian[np.ix_(active, active)] - np.eye(len(active))
         try:
             dz = np.linalg.solve(jac, -res)
         except np.linalg.LinAlgError:
             dz = np.linalg.lstsq(jac, -res, rcond=None)[0]
+        if norm < tol:
+            # Converged: one more Newton step polishes the fixed point to round-off (quadratic
+            # convergence), kept only if it lowers the residual.
+            polished = z.copy()
+            polished[active] += dz
+            try:
+                s_pol = walker.step(polished)
+                if np.max(np.abs((s_pol.z_plus - polished)[active] / scale[active])) < norm:
+                    z = polished
+            except StepFailure:
+                pass
+            return _make_gait(walker, z, it)
         lam = 1.0
         while lam > 1e-4:
             trial = z.copy()

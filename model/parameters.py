@@ -129,6 +129,7 @@ class Params:
         for name, size in _VECTORS.items():
             object.__setattr__(self, name, _as_vector(name, getattr(self, name), size))
         effects = dict(self.effects)
+        _check_effect_names(effects)
         for key, value in effects.items():
             effects[key] = _as_float(f"effects.{key}", value)
         object.__setattr__(self, "effects", _FrozenDict(effects))
@@ -257,6 +258,7 @@ class _FrozenDict(dict):
         raise TypeError("Params.effects is read-only; use Params.replace")
 
     __setitem__ = __delitem__ = clear = pop = popitem = setdefault = update = _readonly  # type: ignore
+    __ior__ = _readonly  # type: ignore
 
     def __hash__(self) -> int:  # type: ignore[override]
         return hash(tuple(sorted(self.items())))
@@ -316,6 +318,9 @@ def _get_flat(data: dict[str, Any], name: str) -> Any:
 
 
 def _set_flat(data: dict[str, Any], name: str, value: Any) -> None:
+    if name in _VECTORS:  # a whole vector field; its value is validated by Params
+        data[name] = value
+        return
     _get_flat(data, name)  # validates the name
     if name.startswith("effects."):
         data["effects"][name.split(".", 1)[1]] = value

@@ -34,6 +34,9 @@ _PUB_TO_INT_3D = np.array([0, 4, 1, 5, 2, 6, 3, 7])
 # Newton on the last step's length: |h| target (relative to the leg length) and iteration cap.
 _GUARD_TOL = 1e-14
 _GUARD_MAXIT = 30
+# The swing foot must start at least this far (relative to the leg length) behind the stance foot:
+# legs together (a zero-length step) is a trivial fixed point of the step map, not a gait.
+_START_GAP = 1e-6
 
 
 class StepFailure(RuntimeError):
@@ -220,7 +223,7 @@ class Walker:
         Raises
         ------
         StepFailure
-            ``status`` is ``"fell"`` (a hip or the centre of mass reached the ramp) or
+            ``status`` is ``"fell"`` (a hip, a leg's or the walker's centre of mass reached the ramp) or
             ``"no_heel_strike"`` (no heel strike within ``max_step_time``).
         """
         x0 = self.full_state(z0)
@@ -235,7 +238,7 @@ class Walker:
         scuffs = 0
         # A heel strike needs the swing foot to come from behind the stance foot: a state whose
         # swing foot is not behind at the start (legs together) cannot start a step.
-        if not g_prev[1] < 0.0:
+        if not g_prev[1] < -_START_GAP * self.params.leg_length:
             raise StepFailure(
                 "no_heel_strike",
                 f"the swing foot must start behind the stance foot (it is {g_prev[1]:.3g} m ahead)",
@@ -262,7 +265,7 @@ class Walker:
                         blocks.append(xs[:, : j + 1].T)
                     raise StepFailure(
                         "fell",
-                        f"a hip or the centre of mass reached the ramp at t = {(n_done + j + 1) * dt:.4g} s",
+                        f"a hip or a centre of mass reached the ramp at t = {(n_done + j + 1) * dt:.4g} s",
                         self._partial(blocks),
                     )
                 if ahead[j] > 0.0:
@@ -319,6 +322,17 @@ class Walker:
         if jacobian:
             self._step_jacobian(x0, hit, x_before, tau, x_t, out, params_jacobian)
         return out
+
+    def stride(self, z0: np.ndarray, jacobian: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
+        """The stride map P o P (the seed's map f, collision to the next collision of the same foot).
+
+        Returns ``(z_2, J)``: the state after two steps, shape (8,), and dz_2/dz0 (8, 8) or None.
+        Mirroring twice restores the original description, so z_2 is in the frame of z0.
+        """
+        first = self.step(z0, jacobian=jacobian)
+        second = self.step(first.z_plus, jacobian=jacobian)
+        jac = second.jacobian @ first.jacobian if jacobian else None
+        return second.z_plus, jac
 
     def _partial(self, blocks):
         if blocks is None:

@@ -93,3 +93,14 @@ def test_bad_start_fails_with_status(compass):
         walker.step(np.zeros(7))
     with pytest.raises(ValueError, match="finite"):
         walker.step(np.full(8, np.nan))
+
+
+def test_stride_map_is_two_steps(compass):
+    """The stride map's Jacobian is the product of two step-map Jacobians (chain rule), and its
+    eigenvalues at a symmetric gait are the squares of the step map's."""
+    params, gait = compass
+    walker = Walker(params)
+    z2, jac = walker.stride(gait.fixed_point, jacobian=True)
+    assert_allclose(z2, gait.fixed_point, atol=1e-10)
+    stride_eigs = np.sort_complex(np.linalg.eigvals(jac))
+    assert_allclose(stride_eigs, np.sort_complex(gait.eigenvalues**2), atol=1e-8 * np.abs(stride_eigs).max())

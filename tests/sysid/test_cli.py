@@ -57,10 +57,11 @@ def test_missing_parameter_file(tmp_path):
 
 
 def test_no_gait_is_a_clear_error(tmp_path):
-    """A walker on a 60-degree ramp has no gait: one line, exit 2, no output."""
-    steep = tmp_path / "steep.toml"
-    steep.write_text(SIMPLEST.read_text().replace("slope = 0.009", "slope = 1.0"))
-    out = run("simulate", "--params", steep, "--steps", "3", "--out", tmp_path / "t.csv")
+    """A passive walker going uphill has no gait (collisions lose energy, nothing supplies it):
+    one line, exit 2, no output."""
+    uphill = tmp_path / "uphill.toml"
+    uphill.write_text(SIMPLEST.read_text().replace("slope = 0.009", "slope = -0.05"))
+    out = run("simulate", "--params", uphill, "--steps", "3", "--out", tmp_path / "t.csv")
     assert out.returncode == 2
     assert "no gait found" in out.stderr and len(out.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "t.csv").exists()
