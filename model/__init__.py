@@ -3,6 +3,7 @@
 from .gait import Gait, GaitNotFound, find_gait, solve_fixed_point
 from .parameters import PARAMETER_NAMES, ParameterError, Params, load_params, save_params
 from .simulate import Trajectory, simulate
+from .statics import StandingReport, can_stand, static_margin
 from .walker import STATE_NAMES, Step, StepFailure, Walker
 
 __all__ = [
@@ -12,13 +13,16 @@ __all__ = [
     "GaitNotFound",
     "ParameterError",
     "Params",
+    "StandingReport",
     "Step",
     "StepFailure",
     "Trajectory",
     "Walker",
+    "can_stand",
     "find_gait",
     "load_params",
     "save_params",
     "simulate",
     "solve_fixed_point",
+    "static_margin",
 ]

@@ -751,7 +751,9 @@ def _reason(params: Params, ramp, level, stands: bool, stands_level: bool) -> st
         conf = stable[0]
         eq = conf.equilibrium
         text = (
-            f"It can stand {_ground(slope)} on {conf.kind}: a stable equilibrium at lean "
+            f"It can stand {_ground(slope)} on {conf.kind}: a stable equilibrium at "
+            + (f"heading {_angle(eq['phi'])} rad from downhill, " if slope != 0.0 else "")
+            + "lean "
             f"{_angle(eq['psi'])} rad, leg pitches {_angle(eq['theta_st'])} and "
             f"{_angle(eq['theta_sw'])} rad, "
             f"with the centre of mass {_length(conf.com_height)} above the ramp, "
@@ -761,7 +763,7 @@ def _reason(params: Params, ramp, level, stands: bool, stands_level: bool) -> st
             text += f", held up sideways by the {_length(params.hip_width)} wide two-foot base"
         text += "."
         if len(stable) > 1:
-            text += " Also stable: " + ", ".join(c.kind for c in stable[1:]) + "."
+            text += " Also stable: " + "; ".join(c.kind for c in stable[1:]) + "."
     else:
         feasible = [c for c in ramp if c.status == "unstable"]
         if feasible:
