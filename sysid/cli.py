@@ -207,9 +207,24 @@ def cmd_demo(args) -> int:
     return 0
 
 
+#: Modules that add commands of later stages: each defines ``register(subparsers)``, adding its
+#: sub-parsers with ``set_defaults(func=...)``; a function raises :class:`CommandError` for bad input.
+_COMMAND_MODULES = (
+    "toywalk.sysid.cmd_calibrate",
+    "toywalk.sysid.cmd_render",
+    "toywalk.sysid.cmd_track",
+)
+
+
 def build_parser() -> argparse.ArgumentParser:
+    import importlib
+    import importlib.util
+
     parser = argparse.ArgumentParser(prog="toywalk", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
+    for name in _COMMAND_MODULES:
+        if importlib.util.find_spec(name) is not None:
+            importlib.import_module(name).register(sub)
     p = sub.add_parser("gait", help="find the symmetric gait and its stability")
     p.add_argument("--params", required=True, help="parameter TOML file")
     p.add_argument("--json", action="store_true", help="machine-readable output")

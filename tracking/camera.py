@@ -1,0 +1,191 @@
+"""The camera model: intrinsics, OpenCV distortion, projection and back-projection, JSON files.
+
+Conventions (written once, used everywhere in ``tracking``):
+
+- Pixel coordinates are OpenCV's ``(u, v)`` = (column, row), in pixels, the centre of the top-left
+  pixel at (0, 0). Images themselves are NumPy arrays indexed ``[row, col]``.
+- The camera frame is OpenCV's: x right, y down, z forward (optical axis).
+- A pose ``(rvec, tvec)`` maps points of a body frame into the camera frame,
+  ``X_cam = R(rvec) X_body + tvec`` (Rodrigues vector, metres). The ramp frame is model.md's
+  slope frame S (x downhill, y left, z along the ramp normal).
+- Distortion coefficients are in OpenCV's order ``(k1, k2, p1, p2[, k3[, k4, k5, k6]])``.
+
+All pixel-to-world conversion happens in the named functions of this module.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+__all__ = [
+    "Camera",
+    "CameraError",
+    "backproject",
+    "default_camera",
+    "load_camera",
+    "pose_matrix",
+    "project",
+    "save_camera",
+    "undistort_pixels",
+]
+
+
+class CameraError(ValueError):
+    """A camera file or camera argument is malformed."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Camera:
+    """A calibrated camera.
+
+    Attributes
+    ----------
+    width, height : int
+        Image size (pixels).
+    matrix : ndarray, shape (3, 3)
+        Intrinsic matrix [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] (pixels).
+    distortion : ndarray, shape (n,), n in {4, 5, 8, 12, 14}
+        OpenCV distortion coefficients.
+    ramp_pose : tuple of two ndarrays, shape (3,) each, or None
+        (rvec, tvec) of the ramp frame in the camera frame, where the ramp is fixed relative to
+        the camera; None when the ramp board is to be found in each frame.
+    reprojection_error : float or None
+        RMS reprojection error of the calibration (pixels), where known.
+    """
+
+    width: int
+    height: int
+    matrix: np.ndarray
+    distortion: np.ndarray
+    ramp_pose: tuple[np.ndarray, np.ndarray] | None = None
+    reprojection_error: float | None = None
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.width, int) and isinstance(self.height, int)
+                and self.width > 0 and self.height > 0):
+            raise CameraError(f"image size must be positive integers, got {self.width}x{self.height}")
+        k = np.asarray(self.matrix, dtype=float)
+        if k.shape != (3, 3) or not np.all(np.isfinite(k)):
+            raise CameraError(f"camera matrix must be a finite 3x3 array, got shape {k.shape}")
+        if k[0, 0] <= 0 or k[1, 1] <= 0 or not np.allclose(k[2], [0, 0, 1]) or k[1, 0] != 0:
+            raise CameraError("camera matrix must be [[fx, s, cx], [0, fy, cy], [0, 0, 1]] with fx, fy > 0")
+        d = np.asarray(self.distortion, dtype=float).ravel()
+        if d.size not in (4, 5, 8, 12, 14) or not np.all(np.isfinite(d)):
+            raise CameraError(f"distortion must have 4, 5, 8, 12 or 14 finite coefficients, got {d.size}")
+        object.__setattr__(self, "matrix", k)
+        object.__setattr__(self, "distortion", d)
+        if self.ramp_pose is not None:
+            rvec, tvec = (np.asarray(v, dtype=float).reshape(3) for v in self.ramp_pose)
+            object.__setattr__(self, "ramp_pose", (rvec, tvec))
+
+    @property
+    def size(self) -> tuple[int, int]:
+        """(width, height) in pixels, OpenCV's order."""
+        return self.width, self.height
+
+    def to_dict(self) -> dict:
+        out = {
+            "image_size": [self.width, self.height],
+            "camera_matrix": self.matrix.tolist(),
+            "distortion": self.distortion.tolist(),
+        }
+        if self.ramp_pose is not None:
+            out["ramp_pose"] = {"rvec": self.ramp_pose[0].tolist(), "tvec": self.ramp_pose[1].tolist()}
+        if self.reprojection_error is not None:
+            out["reprojection_error_px"] = float(self.reprojection_error)
+        return out
+
+    @classmethod
+    def from_dict(cls, data: dict) -> Camera:
+        try:
+            width, height = (int(v) for v in data["image_size"])
+            pose = data.get("ramp_pose")
+            ramp_pose = (pose["rvec"], pose["tvec"]) if pose else None
+            return cls(width=width, height=height, matrix=np.array(data["camera_matrix"], dtype=float),
+                       distortion=np.array(data["distortion"], dtype=float), ramp_pose=ramp_pose,
+                       reprojection_error=data.get("reprojection_error_px"))
+        except (KeyError, TypeError, ValueError) as err:
+            if isinstance(err, CameraError):
+                raise
+            raise CameraError(f"malformed camera description: {err!r}") from err
+
+
+def load_camera(path: str | Path) -> Camera:
+    """Read a camera JSON file; a clear :class:`CameraError` for a missing or malformed file."""
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text())
+    except FileNotFoundError as err:
+        raise CameraError(f"camera file not found: {path}") from err
+    except (OSError, json.JSONDecodeError) as err:
+        raise CameraError(f"cannot read camera file {path}: {err}") from err
+    if not isinstance(data, dict):
+        raise CameraError(f"camera file {path} must hold a JSON object")
+    try:
+        return Camera.from_dict(data)
+    except CameraError as err:
+        raise CameraError(f"{path}: {err}") from err
+
+
+def save_camera(camera: Camera, path: str | Path) -> None:
+    """Write a camera JSON file atomically."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp")
+    try:
+        tmp.write_text(json.dumps(camera.to_dict(), indent=2) + "\n")
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def default_camera(width: int = 1280, height: int = 720, horizontal_fov_deg: float = 40.0,
+                   distortion=(0.0, 0.0, 0.0, 0.0, 0.0), ramp_pose=None) -> Camera:
+    """A pinhole camera with square pixels, the principal point at the image centre."""
+    f = 0.5 * width / math.tan(math.radians(horizontal_fov_deg) / 2)
+    k = np.array([[f, 0, (width - 1) / 2], [0, f, (height - 1) / 2], [0, 0, 1.0]])
+    return Camera(width=width, height=height, matrix=k, distortion=np.array(distortion, float),
+                  ramp_pose=ramp_pose)
+
+
+def pose_matrix(rvec, tvec) -> np.ndarray:
+    """4x4 homogeneous transform of a pose (rvec, tvec)."""
+    out = np.eye(4)
+    out[:3, :3] = cv2.Rodrigues(np.asarray(rvec, dtype=float).reshape(3, 1))[0]
+    out[:3, 3] = np.asarray(tvec, dtype=float).reshape(3)
+    return out
+
+
+def project(camera: Camera, points, rvec, tvec) -> np.ndarray:
+    """Pixels (u, v), shape (n, 2), of body-frame points, shape (n, 3) (m), seen with pose (rvec, tvec).
+
+    Points behind the camera come back as NaN.
+    """
+    pts = np.asarray(points, dtype=float).reshape(-1, 3)
+    uv, _ = cv2.projectPoints(pts, np.asarray(rvec, float).reshape(3, 1),
+                              np.asarray(tvec, float).reshape(3, 1), camera.matrix, camera.distortion)
+    uv = uv.reshape(-1, 2)
+    depth = (pose_matrix(rvec, tvec)[:3, :3] @ pts.T).T[:, 2] + np.asarray(tvec, float).reshape(3)[2]
+    uv[depth <= 0] = np.nan
+    return uv
+
+
+def undistort_pixels(camera: Camera, pixels) -> np.ndarray:
+    """Normalised image coordinates (x/z, y/z), shape (n, 2), of pixels (u, v), shape (n, 2)."""
+    px = np.asarray(pixels, dtype=float).reshape(-1, 1, 2)
+    criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-12)
+    out = cv2.undistortPoints(px, camera.matrix, camera.distortion, None, None, None, criteria)
+    return out.reshape(-1, 2)
+
+
+def backproject(camera: Camera, pixels) -> np.ndarray:
+    """Unit rays in the camera frame, shape (n, 3), through pixels (u, v), shape (n, 2)."""
+    xy = undistort_pixels(camera, pixels)
+    rays = np.column_stack([xy, np.ones(len(xy))])
+    return rays / np.linalg.norm(rays, axis=1, keepdims=True)
