@@ -1,0 +1,290 @@
+"""Periodic gaits as boundary value problems, solved by direct collocation with IPOPT.
+
+One step is a two-point boundary value problem on [0, T] with free duration T (model.md section 5):
+the equations of motion on the interval, the guard ``h(x(T)) = 0`` at the end (with the swing foot
+ahead of the stance foot and moving down), and ``x(0) = mirror(collision(x(T)))``. Time is scaled
+to tau = t / T in [0, 1], cut into ``n_intervals`` equal intervals, each with a Lagrange polynomial
+of degree ``degree`` through Gauss-Legendre points (Biegler, *Nonlinear Programming*, SIAM 2010,
+ch. 10; CasADi's ``collocation_coeff``). Gauss-Legendre collocation is a Runge-Kutta method of order
+``2 * degree``: with the defaults (30 intervals, degree 4) the fixed point agrees with shooting to
+about 1e-11 on the bundled walkers (tests/model/test_collocation.py).
+
+The NLP has no objective (a square feasibility problem: the fixed point is an isolated solution);
+its parameters are the walker's parameter vector, so one NLP, built once, serves every parameter
+set. Because the collocation form does not integrate forward, it keeps working for gaits too
+unstable to follow by simulation, and it is the form used to fit data.
+
+The step-map Jacobian of a collocation gait is obtained independently of the shooting solver: the
+implicit-function theorem on the collocation equations with the start state as a parameter gives
+dx(T)/dx(0) (the guard fixing T), and the collision's Jacobian completes dP/dz.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from functools import cache
+
+import casadi as ca
+import numpy as np
+
+from .equations import N_PARAMS, build_functions, layout
+from .parameters import Params
+from .walker import Walker
+
+__all__ = ["CollocationGait", "solve_collocation"]
+
+
+@dataclasses.dataclass
+class CollocationGait:
+    """A gait found by collocation.
+
+    Attributes
+    ----------
+    fixed_point : ndarray, shape (8,)
+        State just after heel strike (public order).
+    step_time : float
+        (s)
+    success : bool
+        IPOPT converged and the residuals are small.
+    status : str
+        IPOPT's return status.
+    max_residual : float
+        Largest violation of the collocation, boundary and guard equations.
+    times : ndarray, shape (n,)
+        Mesh and collocation times (s), increasing.
+    states : ndarray, shape (n, n_dyn)
+        Internal dynamic states at ``times``.
+    jacobian : ndarray, shape (8, 8)
+        Step-map Jacobian from the collocation equations (public order).
+    eigenvalues : ndarray, complex
+        Its eigenvalues, sorted by decreasing modulus.
+    iterations : int
+        IPOPT iterations.
+    solution : ndarray
+        The NLP's primal solution (pass as ``warm_start`` to a neighbouring solve).
+    """
+
+    fixed_point: np.ndarray
+    step_time: float
+    success: bool
+    status: str
+    max_residual: float
+    times: np.ndarray
+    states: np.ndarray
+    jacobian: np.ndarray
+    eigenvalues: np.ndarray
+    iterations: int
+    solution: np.ndarray
+    multipliers: np.ndarray
+
+    @property
+    def max_abs_eigenvalue(self) -> float:
+        return float(np.max(np.abs(self.eigenvalues)))
+
+
+@dataclasses.dataclass
+class _Problem:
+    solver: ca.Function
+    constraints: ca.Function  # (w, p) -> g
+    n_dyn: int
+    n_int: int
+    degree: int
+    lbg: np.ndarray
+    ubg: np.ndarray
+    tau: np.ndarray
+    jac_fun: ca.Function  # (w, p) -> dg/dw
+
+
+def _w_layout(n_dyn: int, n_int: int, degree: int):
+    """Decision vector w = [T, X_0, (Xc_k (degree states), X_{k+1}) for each interval]."""
+    per_interval = n_dyn * (degree + 1)
+    return 1 + n_dyn + n_int * per_interval
+
+
+@cache
+def _problem(planar: bool, n_intervals: int, degree: int) -> _Problem:
+    lay = layout(planar)
+    nd = lay.n_dyn
+    base = build_functions(planar)
+    pad = lay.nx - nd
+    xs = ca.SX.sym("x", nd)
+    ps = ca.SX.sym("p", N_PARAMS)
+    full = ca.vertcat(xs, ca.SX.zeros(pad))
+    f_dyn = ca.Function("f_dyn", [xs, ps], [base["rhs"](full, ps)[:nd]])
+    g_end = ca.Function("g_end", [xs, ps], [base["guard"](full, ps)])
+    rdot = ca.Function("hdot", [xs, ps], [ca.mtimes(ca.jacobian(base["guard"](full, ps)[0], xs),
+                                                     base["rhs"](full, ps)[:nd])])
+    coll = ca.Function("coll", [xs, ps], [base["collision"](full, ps)[:nd]])
+
+    tau = np.array(ca.collocation_points(degree, "legendre"))
+    c_mat, d_vec, _ = (np.array(m) for m in ca.collocation_coeff(list(tau)))
+    w = ca.MX.sym("w", _w_layout(nd, n_intervals, degree))
+    p = ca.MX.sym("p", N_PARAMS)
+    big_t = w[0]
+    x0 = w[1:1 + nd]
+    h = big_t / n_intervals
+    eqs, lb, ub = [], [], []
+    xk = x0
+    offset = 1 + nd
+    f_map = f_dyn.map(degree)
+    for _ in range(n_intervals):
+        xc = ca.reshape(w[offset:offset + nd * degree], nd, degree)
+        offset += nd * degree
+        x_next = w[offset:offset + nd]
+        offset += nd
+        z = ca.horzcat(xk, xc)
+        eqs.append(ca.vec(ca.mtimes(z, c_mat) - h * f_map(xc, ca.repmat(p, 1, degree))))
+        eqs.append(ca.mtimes(z, d_vec) - x_next)
+        xk = x_next
+    n_eq = sum(e.shape[0] for e in eqs)
+    lb += [0.0] * n_eq
+    ub += [0.0] * n_eq
+    guard = g_end(xk, p)
+    # Periodicity with relabel and mirror, the heel strike on the guard, ahead and moving down.
+    eqs += [x0 - coll(xk, p), guard[0]]
+    lb += [0.0] * (nd + 1)
+    ub += [0.0] * (nd + 1)
+    # Exclude the trivial zero-length "step" with the legs together: the swing foot starts behind
+    # the stance foot (as in Walker.step) and the step lasts at least 0.05 sqrt(l/g).
+    start_ahead = g_end(x0, p)[1]
+    eqs += [guard[1], rdot(xk, p), big_t - 0.05 * ca.sqrt(p[0] / p[16]), start_ahead + 1e-6 * p[0]]
+    lb += [0.0, -np.inf, 0.0, -np.inf]
+    ub += [np.inf, 0.0, np.inf, 0.0]
+    g = ca.vertcat(*eqs)
+    nlp = {"x": w, "p": p, "f": 0, "g": g}
+    opts = {
+        "ipopt.print_level": 0,
+        "print_time": False,
+        "ipopt.tol": 1e-12,
+        "ipopt.constr_viol_tol": 1e-12,
+        "ipopt.max_iter": 200,
+        "ipopt.sb": "yes",
+    }
+    solver = ca.nlpsol("gait_collocation", "ipopt", nlp, opts)
+    constraints = ca.Function("g", [w, p], [g])
+    # Equality part without the periodicity: used for the step-map Jacobian (start state free).
+    jac_fun = ca.Function("dg", [w, p], [ca.jacobian(g, w)])
+    return _Problem(solver=solver, constraints=constraints, n_dyn=nd, n_int=n_intervals,
+                    degree=degree, lbg=np.array(lb), ubg=np.array(ub), tau=tau, jac_fun=jac_fun)
+
+
+def _initial_guess(walker: Walker, z0: np.ndarray, prob: _Problem) -> np.ndarray:
+    """Collocation variables from a forward simulation of one step from z0 (Hermite-free: states
+    at the collocation times by cubic interpolation of the recorded integration grid)."""
+    from scipy.interpolate import CubicHermiteSpline
+
+    step = walker.step(z0, record=True)
+    nd = prob.n_dyn
+    states = step.states[:, :nd]
+    derivs = np.array([walker.rhs(x)[:nd] for x in step.states])
+    spline = CubicHermiteSpline(step.times, states, derivs, axis=0)
+    big_t = step.step_time
+    w = [np.array([big_t]), states[0]]
+    h = 1.0 / prob.n_int
+    for k in range(prob.n_int):
+        tc = (k + prob.tau) * h * big_t
+        w.append(spline(tc).T.ravel(order="F"))
+        w.append(spline(min((k + 1) * h * big_t, step.times[-1])))
+    return np.concatenate(w)
+
+
+def solve_collocation(params: Params, z_guess: np.ndarray | None = None, planar: bool = False,
+                      n_intervals: int = 30, degree: int = 4,
+                      warm_start: CollocationGait | None = None) -> CollocationGait:
+    """Solve the periodic-gait BVP by collocation.
+
+    Parameters
+    ----------
+    params : Params
+    z_guess : ndarray, shape (8,), optional
+        A state near the gait's fixed point; one step is simulated from it for the initial guess.
+    planar : bool
+        Solve the planar reduction.
+    n_intervals, degree : int
+        Mesh intervals and the collocation polynomials' degree.
+    warm_start : CollocationGait, optional
+        A neighbouring solution (same mesh) to start from instead of a simulation.
+
+    Returns
+    -------
+    CollocationGait
+        ``success`` False (with IPOPT's status) if it did not converge; never raises for that.
+    """
+    prob = _problem(planar, n_intervals, degree)
+    walker = Walker(params, planar=planar)
+    p = params.vector()
+    if warm_start is not None:
+        w0, lam0 = warm_start.solution, warm_start.multipliers
+    elif z_guess is not None:
+        w0, lam0 = _initial_guess(walker, np.asarray(z_guess, float), prob), None
+    else:
+        raise ValueError("solve_collocation needs z_guess or warm_start")
+    kwargs = dict(x0=w0, p=p, lbg=prob.lbg, ubg=prob.ubg)
+    if lam0 is not None:
+        kwargs["lam_g0"] = lam0
+    sol = prob.solver(**kwargs)
+    stats = prob.solver.stats()
+    w = np.array(sol["x"]).ravel()
+    g = np.array(prob.constraints(w, p)).ravel()
+    viol = np.maximum(prob.lbg - g, 0) + np.maximum(g - prob.ubg, 0)
+    max_res = float(np.max(viol))
+    nd = prob.n_dyn
+    times, states = _trajectory(w, prob)
+    x0 = w[1:1 + nd]
+    jac = _step_jacobian(w, p, prob, walker)
+    vals = np.linalg.eigvals(jac[np.ix_(_active(planar), _active(planar))]) if planar else \
+        np.linalg.eigvals(jac)
+    if planar:
+        vals = np.concatenate([vals, np.zeros(4)])
+    order = np.argsort(-np.abs(vals), kind="stable")
+    success = bool(stats["success"]) and max_res < 1e-8
+    return CollocationGait(
+        fixed_point=walker.to_public(np.concatenate([x0, np.zeros(walker.lay.nx - nd)])),
+        step_time=float(w[0]), success=success, status=str(stats["return_status"]),
+        max_residual=max_res, times=times, states=states, jacobian=jac, eigenvalues=vals[order],
+        iterations=int(stats["iter_count"]), solution=w,
+        multipliers=np.array(sol["lam_g"]).ravel())
+
+
+def _active(planar: bool) -> list[int]:
+    return [4, 5, 6, 7] if planar else list(range(8))
+
+
+def _trajectory(w: np.ndarray, prob: _Problem) -> tuple[np.ndarray, np.ndarray]:
+    nd, d = prob.n_dyn, prob.degree
+    big_t = w[0]
+    h = big_t / prob.n_int
+    times, states = [0.0], [w[1:1 + nd]]
+    offset = 1 + nd
+    for k in range(prob.n_int):
+        xc = w[offset:offset + nd * d].reshape(d, nd)
+        offset += nd * d
+        times.extend((k + prob.tau) * h)
+        states.extend(xc)
+        times.append((k + 1) * h)
+        states.append(w[offset:offset + nd])
+        offset += nd
+    return np.array(times), np.array(states)
+
+
+def _step_jacobian(w: np.ndarray, p: np.ndarray, prob: _Problem, walker: Walker) -> np.ndarray:
+    """dP/dz by the implicit-function theorem on the collocation and guard equations.
+
+    Unknowns y = (T, interior states, end state), parameters x0. Equations: collocation and
+    continuity (all intervals) and the guard h(x_N) = 0. Then dP/dx0 = C_x(x_N) dx_N/dx0.
+    """
+    nd = prob.n_dyn
+    jac = np.array(prob.jac_fun(w, p).full())
+    n_coll = prob.n_int * nd * (prob.degree + 1)
+    rows = list(range(n_coll)) + [n_coll + nd]  # collocation/continuity + guard h = 0
+    cols_x0 = list(range(1, 1 + nd))
+    cols_y = [0] + list(range(1 + nd, len(w)))
+    a = jac[np.ix_(rows, cols_y)]
+    b = jac[np.ix_(rows, cols_x0)]
+    dy = -np.linalg.solve(a, b)
+    dxn = dy[-nd:]  # the end state is the last block of w
+    x_end = np.concatenate([w[-nd:], np.zeros(walker.lay.nx - nd)])
+    _, c_x, _ = walker.eng.k["collision_jac"](x_end, walker.p)
+    jac_int = c_x[:nd, :nd] @ dxn
+    return walker._jac_to_public(jac_int)
+
