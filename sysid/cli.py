@@ -79,6 +79,8 @@ def _print_gait(report: dict, out=sys.stdout) -> None:
 
 def cmd_gait(args) -> int:
     params = _load(args.params)
+    if args.continue_:
+        return _continue(args, params)
     gait = _find_gait(params)
     report = _gait_report(params, gait)
     if args.json:
@@ -87,6 +89,100 @@ def cmd_gait(args) -> int:
     else:
         _print_gait(report)
     return 0
+
+
+def _continue(args, params) -> int:
+    from toywalk.model.continuation import continue_branch
+    from toywalk.model.gait import GaitNotFound
+    from toywalk.model.parameters import ParameterError
+
+    name, start, end = args.continue_
+    try:
+        start, end = float(start), float(end)
+    except ValueError as err:
+        raise CommandError(f"--continue NAME FROM TO: FROM and TO must be numbers, got {start!r} {end!r}") from err
+    if args.out is None:
+        raise CommandError("--continue needs --out TABLE.csv (the plot is written beside it)")
+    out = Path(args.out)
+    if out.suffix != ".csv":
+        raise CommandError(f"--out must name a .csv file, got {out}")
+    if not out.parent.exists():
+        raise CommandError(f"output folder does not exist: {out.parent}")
+    if args.points < 2:
+        raise CommandError(f"--points must be >= 2, got {args.points}")
+    try:
+        branch = continue_branch(params, name, start, end, max_points=args.points,
+                                 progress=sys.stderr.isatty())
+    except (ParameterError, ValueError) as err:
+        raise CommandError(str(err)) from err
+    except GaitNotFound as err:
+        raise CommandError(f"no gait found at {name} = {start}: {err}") from err
+    _write_branch(branch, out)
+    for event in branch.events:
+        print(event.detail)
+    print(f"{branch.status}: {branch.message}; {len(branch.points)} gaits -> {out}, "
+          f"{out.with_suffix('.png')}, {out.with_suffix('.json')}")
+    return 0
+
+
+def _write_branch(branch, out: Path) -> None:
+    """Table (CSV), events and status (JSON) and a plot (PNG), each written atomically."""
+    import csv
+    import io
+    import os
+
+    cols, rows = branch.table()
+    buf = io.StringIO()
+    writer = csv.writer(buf)
+    writer.writerow(cols)
+    for row in rows:
+        writer.writerow([repr(float(v)) for v in row])
+    info = {"parameter": branch.name, "status": branch.status, "message": branch.message,
+            "planar": branch.planar,
+            "events": [{"kind": e.kind, "value": e.value, "detail": e.detail} for e in branch.events]}
+    png = out.with_suffix(".png")
+    files = {out: buf.getvalue(), out.with_suffix(".json"): json.dumps(info, indent=2) + "\n"}
+    tmps = []
+    try:
+        for path, text in files.items():
+            tmp = path.with_name(f".{path.name}.tmp")
+            tmps.append((tmp, path))
+            tmp.write_text(text)
+        tmp_png = png.with_name(f".{png.name}.tmp.png")
+        tmps.append((tmp_png, png))
+        _plot_branch(branch, rows, tmp_png)
+        for tmp, path in tmps:
+            os.replace(tmp, path)
+    finally:
+        for tmp, _ in tmps:
+            tmp.unlink(missing_ok=True)
+
+
+def _plot_branch(branch, rows, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(2, 1, figsize=(6, 6), sharex=True)
+    x = rows[:, 0]
+    stable = rows[:, 4] > 0.5
+    axes[0].plot(x, rows[:, 3], "-", color="0.6", lw=1)
+    axes[0].plot(x[stable], rows[stable, 3], "o", ms=3, label="stable")
+    axes[0].plot(x[~stable], rows[~stable, 3], "x", ms=4, label="unstable")
+    axes[0].axhline(1.0, color="k", lw=0.8, ls="--")
+    axes[0].set_ylabel("step map max |eigenvalue|")
+    axes[0].legend(loc="best", fontsize=8)
+    axes[1].plot(x, rows[:, 1], "-o", ms=3)
+    axes[1].set_ylabel("step time (s)")
+    axes[1].set_xlabel(branch.name)
+    for event in branch.events:
+        for ax in axes:
+            ax.axvline(event.value, color="r" if event.kind != "fold" else "b", lw=0.8, alpha=0.7)
+    axes[0].set_title(f"gait family in {branch.name}" + (" (planar reduction)" if branch.planar else ""))
+    fig.tight_layout()
+    fig.savefig(path, dpi=120, format="png")
+    plt.close(fig)
 
 
 def cmd_effects(args) -> int:
@@ -228,6 +324,10 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("gait", help="find the symmetric gait and its stability")
     p.add_argument("--params", required=True, help="parameter TOML file")
     p.add_argument("--json", action="store_true", help="machine-readable output")
+    p.add_argument("--continue", dest="continue_", nargs=3, metavar=("NAME", "FROM", "TO"),
+                   help="follow the gait family in parameter NAME from FROM to TO")
+    p.add_argument("--points", type=int, default=100, help="with --continue: at most this many gaits")
+    p.add_argument("--out", help="with --continue: table TABLE.csv (plot and events beside it)")
     p.set_defaults(func=cmd_gait)
     p = sub.add_parser("effects", help="list the effect library")
     p.add_argument("--json", action="store_true")

@@ -1,0 +1,286 @@
+"""Continuation of gait families in any parameter, with folds and stability changes located.
+
+Pseudo-arclength continuation (Keller 1977; Allgower & Georg, *Introduction to Numerical
+Continuation Methods*, SIAM 2003, ch. 2) of the fixed points of the step map: the unknowns are the
+state just after heel strike and the parameter mu, the equations ``P(z; mu) - z = 0`` plus the
+arclength condition. Both derivatives come exact from :meth:`Walker.step` (AD through the flow,
+guard time and collision, ``params_jacobian``). The step length adapts to the corrector's
+convergence. Along the branch the code reports:
+
+- **folds** (limit points), where dmu/ds changes sign: the branch turns back (two gaits merge);
+- **stability changes**, where max |lambda| crosses 1, classified by the eigenvalue that leaves
+  the unit circle: through +1 (fold or symmetry breaking), through -1 (period doubling), or as a
+  complex pair (Neimark-Sacker). Each is refined by the secant method on max |lambda| - 1 with
+  fixed-parameter Newton solves, so its parameter value is accurate to the solver's tolerance.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+from tqdm.auto import tqdm
+
+from .gait import Gait, GaitNotFound, find_gait, solve_fixed_point
+from .parameters import PARAMETER_NAMES, ParameterError, Params
+from .walker import StepFailure, Walker
+
+__all__ = ["Branch", "BranchEvent", "BranchPoint", "continue_branch"]
+
+_TOL = 1e-10  # corrector tolerance on |P(z) - z| (rad, and rad per sqrt(l/g))
+_MAXIT = 8
+
+
+@dataclasses.dataclass
+class BranchPoint:
+    """One gait on the branch."""
+
+    value: float
+    fixed_point: np.ndarray
+    step_time: float
+    stride_length: float
+    eigenvalues: np.ndarray
+    lean_amplitude: float
+
+    @property
+    def max_abs_eigenvalue(self) -> float:
+        return float(np.max(np.abs(self.eigenvalues)))
+
+    @property
+    def stable(self) -> bool:
+        return self.max_abs_eigenvalue < 1.0
+
+
+@dataclasses.dataclass
+class BranchEvent:
+    """A fold or a stability change between two branch points."""
+
+    kind: str  # "fold", "loses stability", "gains stability"
+    value: float
+    detail: str
+
+
+@dataclasses.dataclass
+class Branch:
+    """A followed gait family.
+
+    Attributes
+    ----------
+    name : str
+        The continued parameter (a parameter-file name such as ``slope`` or ``com_offset[1]``).
+    points : list of BranchPoint
+    events : list of BranchEvent
+    status : str
+        ``"reached"`` (the end value), ``"stalled"`` (the step length fell below its minimum; the
+        message says where) or ``"max_points"``.
+    message : str
+    planar : bool
+    """
+
+    name: str
+    points: list[BranchPoint]
+    events: list[BranchEvent]
+    status: str
+    message: str
+    planar: bool
+
+    def table(self) -> tuple[list[str], np.ndarray]:
+        """(column names, rows): value, step time, stride length, max|lambda|, stable, lean
+        amplitude, the fixed point's eight components."""
+        from .walker import STATE_NAMES
+
+        cols = [self.name, "step_time", "stride_length", "max_abs_eigenvalue", "stable",
+                "lean_amplitude", *STATE_NAMES]
+        rows = np.array([[p.value, p.step_time, p.stride_length, p.max_abs_eigenvalue,
+                          float(p.stable), p.lean_amplitude, *p.fixed_point] for p in self.points])
+        return cols, rows
+
+
+def _index(name: str) -> int:
+    if name.startswith("effects."):
+        raise ParameterError(f"continuation in effect parameters is not supported yet: {name!r}")
+    if name not in PARAMETER_NAMES:
+        raise ParameterError(f"cannot continue in {name!r}; parameters: {', '.join(PARAMETER_NAMES)}")
+    return PARAMETER_NAMES.index(name)
+
+
+def _point(gait: Gait, value: float) -> BranchPoint:
+    return BranchPoint(value=value, fixed_point=gait.fixed_point.copy(), step_time=gait.step_time,
+                       stride_length=gait.stride_length, eigenvalues=gait.eigenvalues.copy(),
+                       lean_amplitude=gait.lean_amplitude)
+
+
+def continue_branch(params: Params, name: str, start: float, end: float, max_points: int = 200,
+                    ds: float | None = None, ds_max: float = 0.05, z_start: np.ndarray | None = None,
+                    planar: bool | None = None, progress: bool = False) -> Branch:
+    """Follow the gait from ``name = start`` towards ``name = end``.
+
+    Parameters
+    ----------
+    params : Params
+        The walker; ``name`` is set to ``start`` for the first gait.
+    name : str
+        Parameter-file name of the continued parameter.
+    start, end : float
+        Parameter range (SI units of that parameter).
+    max_points : int
+        Cap on the number of branch points.
+    ds : float, optional
+        Initial arclength step (in units where the parameter range is 1); default 1/20.
+    ds_max : float
+        Largest arclength step (same units).
+    z_start : ndarray, shape (8,), optional
+        A start near the first gait (default: :func:`find_gait`).
+    planar : bool, optional
+        Continue in the planar reduction (default: as the first gait is found).
+    """
+    k = _index(name)
+    if not (math.isfinite(start) and math.isfinite(end)) or start == end:
+        raise ValueError(f"continuation needs two different finite values, got {start} and {end}")
+    first_params = params.replace(**{name: start})
+    if z_start is None:
+        gait = find_gait(first_params, planar=planar)
+    else:
+        gait = solve_fixed_point(Walker(first_params, planar=bool(planar)), z_start)
+    planar = gait.planar
+    active = [4, 5, 6, 7] if planar else list(range(8))
+    na = len(active)
+    scale = abs(end - start)  # the parameter is measured in units of the range
+    direction = math.copysign(1.0, end - start)
+    ds = ds if ds is not None else 0.05
+    ds_min = 1e-6
+    ds = min(ds, ds_max)
+    points = [_point(gait, start)]
+    events: list[BranchEvent] = []
+    y = np.concatenate([gait.fixed_point[active], [start / scale]])
+    tangent = None
+    status, message = "max_points", f"stopped after {max_points} points"
+
+    def residual(yv):
+        value = yv[-1] * scale
+        walker = Walker(params.replace(**{name: value}), planar=planar)
+        z = np.zeros(8)
+        z[active] = yv[:na]
+        step = walker.step(z, params_jacobian=True)
+        f = (step.z_plus - z)[active]
+        jac = np.zeros((na, na + 1))
+        jac[:, :na] = step.jacobian[np.ix_(active, active)] - np.eye(na)
+        jac[:, na] = step.jacobian_params[active, k] * scale
+        return f, jac
+
+    def null_vector(jac, previous):
+        _, _, vt = np.linalg.svd(jac)
+        t = vt[-1]
+        if previous is None:
+            t = t * math.copysign(1.0, t[-1] * direction if t[-1] != 0 else 1.0)
+        elif t @ previous < 0:
+            t = -t
+        return t / np.linalg.norm(t)
+
+    try:
+        _, jac0 = residual(y)
+    except StepFailure as err:
+        raise GaitNotFound(f"the first gait does not step: {err}") from err
+    tangent = null_vector(jac0, None)
+    bar = tqdm(total=max_points, disable=not progress, desc=f"continuing {name}", unit="pt")
+    while len(points) < max_points:
+        predicted = y + ds * tangent
+        yc, ok, its = predicted.copy(), False, 0
+        for its in range(1, _MAXIT + 1):
+            try:
+                f, jac = residual(yc)
+            except StepFailure:
+                break
+            g = np.concatenate([f, [tangent @ (yc - predicted)]])
+            if np.max(np.abs(f)) < _TOL:
+                ok = True
+                break
+            big = np.vstack([jac, tangent])
+            try:
+                yc = yc - np.linalg.solve(big, g)
+            except np.linalg.LinAlgError:
+                break
+        if not ok:
+            ds *= 0.5
+            if ds < ds_min:
+                status = "stalled"
+                message = (f"the corrector failed below the minimum step near {name} = "
+                           f"{y[-1] * scale:.6g} (the gait may end there: a fall or a grazing "
+                           "heel strike)")
+                break
+            continue
+        new_tangent = null_vector(jac, tangent)
+        value = float(yc[-1] * scale)
+        z = np.zeros(8)
+        z[active] = yc[:na]
+        try:
+            gait_new = solve_fixed_point(Walker(params.replace(**{name: value}), planar=planar), z)
+        except GaitNotFound:
+            ds *= 0.5
+            continue
+        point = _point(gait_new, value)
+        previous = points[-1]
+        if tangent[-1] * new_tangent[-1] < 0:
+            events.append(BranchEvent("fold", value, f"the branch turns back at {name} = {value:.6g}"))
+        if previous.stable != point.stable:
+            events.append(_stability_event(params, name, previous, point, planar))
+        points.append(point)
+        bar.update(1)
+        y, tangent = yc, new_tangent
+        ds = min(ds_max, ds * (1.5 if its <= 3 else 1.0))
+        # Stop at the end of the range (land on it exactly with a fixed-parameter solve).
+        if (value - end) * direction >= 0:
+            try:
+                final = solve_fixed_point(Walker(params.replace(**{name: end}), planar=planar),
+                                          point.fixed_point)
+                points[-1] = _point(final, end)
+            except GaitNotFound:
+                pass
+            status, message = "reached", f"reached {name} = {end:.6g}"
+            break
+        if (value - start) * direction < -1e-12 * scale:
+            status, message = "turned back", f"the branch returned below {name} = {start:.6g}"
+            break
+    bar.close()
+    return Branch(name=name, points=points, events=events, status=status, message=message,
+                  planar=planar)
+
+
+def _stability_event(params: Params, name: str, a: BranchPoint, b: BranchPoint,
+                     planar: bool) -> BranchEvent:
+    """Locate where max|lambda| = 1 between two points (secant on max|lambda| - 1)."""
+    lo, hi = a, b
+    for _ in range(30):
+        fa, fb = lo.max_abs_eigenvalue - 1.0, hi.max_abs_eigenvalue - 1.0
+        if fb == fa:
+            break
+        value = hi.value - fb * (hi.value - lo.value) / (fb - fa)
+        if abs(hi.value - lo.value) < 1e-12 * max(1.0, abs(value)):
+            break
+        w = Walker(params.replace(**{name: value}), planar=planar)
+        frac = (value - lo.value) / (hi.value - lo.value) if hi.value != lo.value else 0.5
+        guess = lo.fixed_point + frac * (hi.fixed_point - lo.fixed_point)
+        try:
+            mid = _point(solve_fixed_point(w, guess), value)
+        except GaitNotFound:
+            break
+        if abs(mid.max_abs_eigenvalue - 1.0) < 1e-10:
+            lo = hi = mid
+            break
+        if (mid.max_abs_eigenvalue < 1.0) == (lo.max_abs_eigenvalue < 1.0):
+            lo = mid
+        else:
+            hi = mid
+    crossing = hi if abs(hi.max_abs_eigenvalue - 1) <= abs(lo.max_abs_eigenvalue - 1) else lo
+    lam = crossing.eigenvalues[0]
+    if abs(lam.imag) > 1e-6:
+        arg = math.degrees(np.angle(lam))
+        how = f"a complex pair crosses the unit circle (|lambda| = 1, arg {arg:.1f} deg)"
+    elif lam.real < 0:
+        how = "an eigenvalue passes through -1 (period doubling)"
+    else:
+        how = "an eigenvalue passes through +1 (fold or symmetry-breaking bifurcation)"
+    kind = "loses stability" if a.stable else "gains stability"
+    value = float(0.5 * (lo.value + hi.value))
+    return BranchEvent(kind, value, f"the gait {kind} at {name} = {value:.8g}: {how}")

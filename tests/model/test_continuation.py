@@ -1,0 +1,73 @@
+"""Continuation of gait families: the simplest walker's stability boundary, and the branch itself."""
+
+import json
+
+import numpy as np
+import pytest
+from toywalk.model.continuation import continue_branch
+from toywalk.model.gait import find_gait
+from toywalk.model.parameters import ParameterError, load_params
+
+from ..conftest import DATA
+
+GARCIA_BOUNDARY = 0.0150884  # anchors.md: an eigenvalue through -1 (Garcia et al. 1998, recomputed)
+
+
+@pytest.fixture(scope="module")
+def simplest():
+    return load_params(DATA / "params" / "simplest-walker.toml")
+
+
+def test_continuation_finds_the_period_doubling(simplest):
+    branch = continue_branch(simplest, "slope", 0.009, 0.0175)
+    assert branch.status == "reached"
+    assert branch.points[-1].value == 0.0175
+    losses = [e for e in branch.events if e.kind == "loses stability"]
+    assert len(losses) == 1
+    # Issue 2/3: 0.01509 +/- 2e-4; the secant refinement is far tighter (1e-6 here).
+    assert abs(losses[0].value - GARCIA_BOUNDARY) < 1e-6
+    assert "-1" in losses[0].detail
+    # Every point on the branch is a gait: compare one with an independent fixed-parameter solve.
+    mid = branch.points[len(branch.points) // 2]
+    gait = find_gait(simplest.replace(slope=mid.value))
+    np.testing.assert_allclose(gait.fixed_point, mid.fixed_point, atol=1e-9)
+
+
+def test_continuation_in_a_3d_parameter():
+    params = load_params(DATA / "params" / "compass-3d.toml")
+    branch = continue_branch(params, "com_offset[1]", 0.02, 0.04, max_points=30)
+    assert branch.status == "reached"
+    assert not branch.planar
+    values = [p.value for p in branch.points]
+    assert values[0] == 0.02 and values[-1] == 0.04
+    assert all(np.diff(values) > 0)  # no fold in this range: monotone parameter
+
+
+def test_continuation_bad_input(simplest):
+    with pytest.raises(ParameterError, match="cannot continue"):
+        continue_branch(simplest, "bogus", 0.0, 1.0)
+    with pytest.raises(ValueError, match="two different"):
+        continue_branch(simplest, "slope", 0.01, 0.01)
+
+
+def test_cli_continue_writes_table_plot_and_events(tmp_path):
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-m", "toywalk.sysid.cli", "gait", "--params",
+                          str(DATA / "params" / "simplest-walker.toml"), "--continue", "slope",
+                          "0.012", "0.016", "--out", str(tmp_path / "branch.csv")],
+                         capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr
+    assert "period doubling" in out.stdout
+    header = (tmp_path / "branch.csv").read_text().splitlines()[0]
+    assert header.startswith("slope,step_time,stride_length,max_abs_eigenvalue,stable")
+    assert (tmp_path / "branch.png").read_bytes()[:4] == b"\x89PNG"
+    events = json.loads((tmp_path / "branch.json").read_text())["events"]
+    assert abs(events[0]["value"] - GARCIA_BOUNDARY) < 1e-6
+    bad = subprocess.run([sys.executable, "-m", "toywalk.sysid.cli", "gait", "--params",
+                          str(DATA / "params" / "simplest-walker.toml"), "--continue", "slope",
+                          "0.012", "x", "--out", str(tmp_path / "bad.csv")],
+                         capture_output=True, text=True, timeout=600)
+    assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "bad.csv").exists()
