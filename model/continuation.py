@@ -187,7 +187,8 @@ def continue_branch(params: Params, name: str, start: float, end: float, max_poi
     while len(points) < max_points:
         predicted = y + ds * tangent
         yc, ok, its = predicted.copy(), False, 0
-        for its in range(1, _MAXIT + 1):
+        for _ in range(_MAXIT):
+            its += 1
             try:
                 f, jac = residual(yc)
             except StepFailure:

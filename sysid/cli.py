@@ -100,7 +100,9 @@ def _continue(args, params) -> int:
     try:
         start, end = float(start), float(end)
     except ValueError as err:
-        raise CommandError(f"--continue NAME FROM TO: FROM and TO must be numbers, got {start!r} {end!r}") from err
+        raise CommandError(
+            f"--continue NAME FROM TO: FROM and TO must be numbers, got {start!r} {end!r}"
+        ) from err
     if args.out is None:
         raise CommandError("--continue needs --out TABLE.csv (the plot is written beside it)")
     out = Path(args.out)
