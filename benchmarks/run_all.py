@@ -326,6 +326,50 @@ def case_leg_mass_floor() -> dict:
     }
 
 
+def case_gait_solves() -> dict:
+    """Gait solves (issue 3): cold and warm, by shooting and by collocation; a 50-point continuation.
+
+    Cold shooting: ``find_gait`` from nothing (planar starts, then continuation to the 3D walker).
+    Warm shooting: Newton from the neighbouring gait at a 1 % different slope. Cold collocation:
+    IPOPT from a simulated step of a perturbed start; warm collocation: from the neighbouring
+    collocation solution. Continuation: 50 points of the simplest walker's slope family.
+    """
+    from toywalk.model.collocation import solve_collocation
+    from toywalk.model.continuation import continue_branch
+    from toywalk.model.gait import solve_fixed_point
+
+    out = {}
+    for name, params in (("planar_simplest", simplest_walker()), ("walker_3d", walker_3d()[0])):
+        gait = find_gait(params)
+        near = params.replace(slope=params.slope * 1.01)
+        walker_near = Walker(near, planar=gait.planar)
+        start = gait.fixed_point * 1.02
+        coll = solve_collocation(params, gait.fixed_point, planar=gait.planar)
+        entry = {
+            "planar": gait.planar,
+            "shooting_cold": measure(lambda p=params: find_gait(p), repeats=5, budget_s=4.0),
+            "shooting_warm": measure(lambda: solve_fixed_point(walker_near, gait.fixed_point),
+                                     repeats=5, budget_s=2.0),
+            "collocation_cold": measure(lambda p=params: solve_collocation(p, start, planar=gait.planar),
+                                        repeats=3, budget_s=6.0),
+            "collocation_warm": measure(lambda: solve_collocation(near, planar=gait.planar,
+                                                                  warm_start=coll),
+                                        repeats=3, budget_s=6.0),
+        }
+        out[name] = entry
+    params = simplest_walker()
+    t0 = time.perf_counter()
+    branch = continue_branch(params, "slope", 0.005, 0.0175, max_points=50, ds_max=0.02)
+    elapsed = time.perf_counter() - t0
+    out["continuation_50_points"] = {
+        "walker": "planar_simplest", "parameter": "slope", "range": [0.005, 0.0175],
+        "points": len(branch.points), "time_s": elapsed,
+        "time_per_point_s": elapsed / max(len(branch.points), 1),
+        "events": [e.detail for e in branch.events],
+    }
+    return out
+
+
 # ------------------------------------------------------------------------------------ output
 def write_json(data: dict, path: Path) -> None:
     """Write ``data`` as JSON atomically (temporary file in the same folder, then rename)."""
@@ -402,6 +446,14 @@ def print_table(res: dict) -> None:
     print(f"     ours {fl['ours_eigenvalue_error_vs_published']:.2e}   baseline "
           f"{fl['baseline_eigenvalue_error_vs_published']:.2e}   ratio "
           f"{fl['accuracy_ratio']:.0f}x   (leg mass 1e-10: the model's O(m/M) floor)")
+    gs = res["gait_solves"]
+    print("5. gait solves (median)                          planar_simplest             walker_3d")
+    for key in ("shooting_cold", "shooting_warm", "collocation_cold", "collocation_warm"):
+        print(f"   {key:42}" + "".join(f"{gs[n][key]['time_median_s'] * 1e3:>19.1f} ms"
+                                        for n in ("planar_simplest", "walker_3d")))
+    c50 = gs["continuation_50_points"]
+    print(f"   continuation, {c50['points']} points of the slope family: {c50['time_s']:.2f} s "
+          f"({c50['time_per_point_s'] * 1e3:.1f} ms per point)")
     print("aims (>= 30x faster step map + Jacobian than the uncompiled baseline; "
           "eigenvalues >= 100x more accurate):")
     for k, v in res["aims"].items():
@@ -445,6 +497,7 @@ def main() -> dict:
     res["step_map_jacobian"] = case_step_jacobian(walkers, refs)
     res["baseline"] = case_baseline(walkers, refs, res["step_map"], res["step_map_jacobian"])
     res["leg_mass_floor"] = case_leg_mass_floor()
+    res["gait_solves"] = case_gait_solves()
     pl = res["baseline"]["planar_simplest"]["baseline_vm_rhs"]
     d3 = res["baseline"]["walker_3d"]["baseline_vm_rhs"]
     res["aims"] = {
