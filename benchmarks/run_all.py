@@ -326,6 +326,27 @@ def case_leg_mass_floor() -> dict:
     }
 
 
+def _gait_solve_times(params: Params) -> dict:
+    from toywalk.model.collocation import solve_collocation
+    from toywalk.model.gait import solve_fixed_point
+
+    gait = find_gait(params)
+    near = params.replace(slope=params.slope * 1.01)
+    walker_near = Walker(near, planar=gait.planar)
+    start = gait.fixed_point * 1.02
+    coll = solve_collocation(params, gait.fixed_point, planar=gait.planar)
+    return {
+        "planar": gait.planar,
+        "shooting_cold": measure(lambda: find_gait(params), repeats=5, budget_s=4.0),
+        "shooting_warm": measure(lambda: solve_fixed_point(walker_near, gait.fixed_point),
+                                 repeats=5, budget_s=2.0),
+        "collocation_cold": measure(lambda: solve_collocation(params, start, planar=gait.planar),
+                                    repeats=3, budget_s=6.0),
+        "collocation_warm": measure(lambda: solve_collocation(near, planar=gait.planar, warm_start=coll),
+                                    repeats=3, budget_s=6.0),
+    }
+
+
 def case_gait_solves() -> dict:
     """Gait solves (issue 3): cold and warm, by shooting and by collocation; a 50-point continuation.
 
@@ -334,29 +355,10 @@ def case_gait_solves() -> dict:
     IPOPT from a simulated step of a perturbed start; warm collocation: from the neighbouring
     collocation solution. Continuation: 50 points of the simplest walker's slope family.
     """
-    from toywalk.model.collocation import solve_collocation
     from toywalk.model.continuation import continue_branch
-    from toywalk.model.gait import solve_fixed_point
 
-    out = {}
-    for name, params in (("planar_simplest", simplest_walker()), ("walker_3d", walker_3d()[0])):
-        gait = find_gait(params)
-        near = params.replace(slope=params.slope * 1.01)
-        walker_near = Walker(near, planar=gait.planar)
-        start = gait.fixed_point * 1.02
-        coll = solve_collocation(params, gait.fixed_point, planar=gait.planar)
-        entry = {
-            "planar": gait.planar,
-            "shooting_cold": measure(lambda p=params: find_gait(p), repeats=5, budget_s=4.0),
-            "shooting_warm": measure(lambda: solve_fixed_point(walker_near, gait.fixed_point),
-                                     repeats=5, budget_s=2.0),
-            "collocation_cold": measure(lambda p=params: solve_collocation(p, start, planar=gait.planar),
-                                        repeats=3, budget_s=6.0),
-            "collocation_warm": measure(lambda: solve_collocation(near, planar=gait.planar,
-                                                                  warm_start=coll),
-                                        repeats=3, budget_s=6.0),
-        }
-        out[name] = entry
+    out = {name: _gait_solve_times(params) for name, params in
+           (("planar_simplest", simplest_walker()), ("walker_3d", walker_3d()[0]))}
     params = simplest_walker()
     t0 = time.perf_counter()
     branch = continue_branch(params, "slope", 0.005, 0.0175, max_points=50, ds_max=0.02)
