@@ -1,0 +1,135 @@
+"""``toywalk render``: draw a trajectory as the camera would film the walking toy (tracking.render).
+
+::
+
+    toywalk render T.csv --params P.toml [--camera C.json] [--markers M.json] [--noise LEVEL]
+                   [--seed S] [--fps F] [--size WxH] [--duration SEC] [--codec FOURCC] --out V.mp4
+
+Without ``--camera`` the camera is :func:`toywalk.tracking.scene.default_camera_for` the walker
+(for the bundled compass-3d walker this is ``data/camera/default.json``); without ``--markers`` the
+layout is :func:`toywalk.tracking.markers.default_layout` (``data/markers/default.json`` for that
+walker). Both are also written next to the video (``V.camera.json``, ``V.markers.json``).
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+__all__ = ["cmd_render", "register"]
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser("render", help="render a trajectory to a synthetic video with its truth")
+    p.add_argument("trajectory", help="trajectory file T.csv")
+    p.add_argument("--params", required=True, help="parameter TOML file (the walker drawn)")
+    p.add_argument("--camera", help="camera JSON with a ramp_pose (default: placed for the walker)")
+    p.add_argument("--markers", help="marker layout JSON (default: the bundled layout for the walker)")
+    p.add_argument("--noise", type=int, default=1, help="imperfection preset 0-3 (default 1)")
+    p.add_argument("--seed", type=int, default=None, help="random seed (default: drawn and recorded)")
+    p.add_argument("--fps", type=float, default=60.0, help="frame rate (default 60)")
+    p.add_argument("--size", help="image size WxH (default: the camera's, or 1280x720)")
+    p.add_argument("--duration", type=float, default=None, help="seconds to render (default: all)")
+    p.add_argument("--codec", default=None, help="FourCC (default mp4v for .mp4, MJPG for .avi)")
+    p.add_argument("--out", required=True, help="video file V.mp4 or V.avi")
+    p.set_defaults(func=cmd_render)
+
+
+def _size(text: str) -> tuple[int, int]:
+    from toywalk.sysid.cli import CommandError
+
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError as err:
+        raise CommandError(f"--size must be WxH in pixels, e.g. 1280x720, got {text!r}") from err
+    if w < 16 or h < 16 or w > 8192 or h > 8192:
+        raise CommandError(f"--size must be between 16x16 and 8192x8192, got {text!r}")
+    return w, h
+
+
+def cmd_render(args) -> int:
+    import math
+
+    import numpy as np
+    from toywalk.model.parameters import ParameterError, load_params
+    from toywalk.model.trajectory import read_trajectory, trajectory_paths
+    from toywalk.sysid.cli import CommandError
+    from toywalk.tracking.camera import CameraError, load_camera
+    from toywalk.tracking.markers import LayoutError, default_layout, load_layout
+    from toywalk.tracking.render import RenderError, RenderOptions, output_paths, render
+    from toywalk.tracking.scene import default_camera_for
+
+    out = Path(args.out)
+    if out.suffix.lower() not in (".mp4", ".avi"):
+        raise CommandError(f"--out must name a .mp4 or .avi file, got {out}")
+    if not out.parent.is_dir():
+        raise CommandError(f"output folder does not exist: {out.parent}")
+    traj_path = Path(args.trajectory)
+    if traj_path.suffix != ".csv":
+        raise CommandError(f"the trajectory must be a .csv file, got {traj_path}")
+    inputs = {p.resolve() for p in trajectory_paths(traj_path)}
+    for extra in (args.params, args.camera, args.markers):
+        if extra:
+            inputs.add(Path(extra).resolve())
+    clash = [p for p in output_paths(out).values() if p.resolve() in inputs]
+    if clash:
+        raise CommandError(f"the output would overwrite the input {clash[0]}; choose another --out name")
+    if args.noise not in (0, 1, 2, 3):
+        raise CommandError(f"--noise must be 0, 1, 2 or 3, got {args.noise}")
+    if not (math.isfinite(args.fps) and 0 < args.fps <= 1000):
+        raise CommandError(f"--fps must be a frame rate in (0, 1000], got {args.fps}")
+    if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
+        raise CommandError(f"--duration must be positive seconds, got {args.duration}")
+    if args.codec is not None and len(args.codec) != 4:
+        raise CommandError(f"--codec must be a four-character code such as mp4v or MJPG, got {args.codec!r}")
+    size = _size(args.size) if args.size else None
+    try:
+        params = load_params(args.params)
+    except ParameterError as err:
+        raise CommandError(str(err).splitlines()[0]) from err
+    try:
+        table = read_trajectory(traj_path)
+    except FileNotFoundError as err:
+        raise CommandError(f"trajectory file not found: {traj_path}") from err
+    except (ValueError, OSError, UnicodeDecodeError) as err:
+        raise CommandError(f"cannot read trajectory: {str(err).splitlines()[0]}") from err
+    if args.camera:
+        try:
+            camera = load_camera(args.camera)
+        except CameraError as err:
+            raise CommandError(str(err).splitlines()[0]) from err
+        if size is not None and size != camera.size:
+            raise CommandError(f"--size {size[0]}x{size[1]} differs from the camera's image size "
+                               f"{camera.width}x{camera.height}; drop --size or use a matching camera")
+        if camera.ramp_pose is None:
+            raise CommandError(f"camera {args.camera} has no ramp_pose: the renderer needs a fixed camera")
+    else:
+        camera = default_camera_for(params, *(size or (1280, 720)))
+    try:
+        layout = load_layout(args.markers) if args.markers else default_layout(params)
+    except LayoutError as err:
+        raise CommandError(str(err).splitlines()[0]) from err
+    seed = args.seed if args.seed is not None else int(np.random.SeedSequence().entropy % (2**32))
+    try:
+        options = RenderOptions.preset(args.noise, fps=float(args.fps), duration=args.duration,
+                                       codec=args.codec)
+        progress = _progress if sys.stderr.isatty() else None
+        result = render(table, params, camera, layout, options, out, rng=seed,
+                        source={"trajectory": str(traj_path), "params": str(args.params),
+                                "camera": args.camera or "default_camera_for(params)",
+                                "markers": args.markers or "default_layout(params)"},
+                        progress=progress)
+    except RenderError as err:
+        raise CommandError(str(err).splitlines()[0]) from err
+    if progress is not None:
+        sys.stderr.write("\n")
+    print(f"rendered {result.n_frames} frames ({camera.width}x{camera.height}, {options.fps:g} fps, "
+          f"noise level {args.noise}, seed {seed}) in {result.seconds:.1f} s -> {out}; truth in "
+          f"{result.paths['truth'].name}")
+    return 0
+
+
+def _progress(k: int, n: int) -> None:
+    if k == n or k % 10 == 0:
+        sys.stderr.write(f"\rframe {k}/{n}")
+        sys.stderr.flush()

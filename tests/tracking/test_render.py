@@ -1,0 +1,282 @@
+"""The synthetic video renderer: its truth is where the camera model says, options, files, CLI."""
+
+import json
+import math
+
+import cv2
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+from toywalk.model.kinematics import leg_poses
+from toywalk.model.parameters import load_params
+from toywalk.model.trajectory import TrajectoryTable, read_trajectory, write_trajectory
+from toywalk.sysid.cli import main
+from toywalk.tracking.camera import Camera, default_camera, load_camera, project, save_camera
+from toywalk.tracking.markers import default_layout, load_layout, marker_corners
+from toywalk.tracking.render import Filming, Motion, RenderError, RenderOptions, render
+from toywalk.tracking.scene import Scene, default_camera_for, look_at
+
+from ..conftest import DATA
+
+COMPASS = DATA / "params" / "compass-3d.toml"
+BODY = {"left_leg": "L", "right_leg": "R", "ramp": "ramp"}
+
+
+@pytest.fixture(scope="module")
+def compass():
+    return load_params(COMPASS)
+
+
+def _walk(params, duration=0.4, n=41, switch=None) -> TrajectoryTable:
+    """A made-up (not dynamically consistent) stretch of walking: both pitches swing, the walker
+    leans and steers, the stance foot's contact creeps forward; optionally a heel strike."""
+    t = np.linspace(0.0, duration, n)
+    signals = {"lean": 0.06 * np.sin(2 * np.pi * t / 0.9), "steer": 0.1 * np.sin(2 * np.pi * t / 0.9 + 1),
+               "pitch_left": -0.2 + 0.9 * t, "pitch_right": 0.2 - 0.9 * t,
+               "contact_x": 0.05 * t, "contact_y": np.zeros(n)}
+    stance = np.full(n, "L")
+    events = []
+    if switch is not None:
+        stance[t >= switch] = "R"
+        events = [{"time": switch, "foot": "R", "x": math.nan, "y": math.nan}]
+        # contact of the right foot after the switch: its lowest point at the switch
+        k = int(np.searchsorted(t, switch))
+        for i in range(k, n):
+            poses = leg_poses(params, signals["steer"][i], signals["lean"][i], signals["pitch_left"][i],
+                              signals["pitch_right"][i], "L", (signals["contact_x"][i], 0.0))
+            o = poses.foot_centre["R"]
+            signals["contact_x"][i], signals["contact_y"][i] = o[0], o[1]  # spherical foot: below O
+    return TrajectoryTable(t, signals, stance, events, {"source": {"kind": "test"}})
+
+
+def _detector(layout):
+    par = cv2.aruco.DetectorParameters()
+    par.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
+    return cv2.aruco.ArucoDetector(layout.aruco_dictionary(), par)
+
+
+def test_markers_are_drawn_where_the_camera_model_projects_them(compass):
+    """The key check of the renderer's truth: ArUco finds every leg marker of a noise-free frame,
+    drawn with lens distortion, at the corners camera.project gives for the true leg poses.
+
+    Tolerance: ArUco's own sub-pixel corner refinement is biased by 0.1-0.25 px for 30-120 px
+    markers (measured on ideal pixel-aligned markers), so 0.35 px RMS over all corners and 0.6 px
+    for any one marker; the mean offset (a half-pixel convention error would show there) < 0.1 px.
+    """
+    layout = default_layout(compass)
+    motion = Motion(_walk(compass), compass)
+    state = motion.state(0.2)
+    target = 0.5 * (state.hip["L"] + state.hip["R"]) + [0, 0, -0.2]
+    az, el = math.radians(35), math.radians(25)
+    position = target + 1.6 * np.array([math.cos(el) * math.cos(az), -math.cos(el) * math.sin(az),
+                                        math.sin(el)])
+    base = default_camera(1280, 720, 45.0, distortion=(-0.08, 0.03, 0.0, 0.0, 0.0))
+    camera = Camera(1280, 720, base.matrix, base.distortion,
+                    ramp_pose=look_at(position, target, np.array([0.0, 0.0, 1.0])))
+    scene = Scene(compass, layout, camera)
+    detector = _detector(layout)
+    diffs, seen = [], set()
+    for t in (0.0, 0.2, 0.4):
+        state = motion.state(t)
+        img = scene.finish(scene.draw(state))
+        assert img.shape == (720, 1280, 3)
+        poses = scene.body_poses(state)
+        corners, ids, _ = detector.detectMarkers(cv2.cvtColor(img, cv2.COLOR_BGR2GRAY))
+        assert ids is not None
+        for c, i in zip(corners, ids.ravel(), strict=True):
+            marker = layout.by_id(int(i))
+            rot, tvec = poses[BODY[marker.body]]
+            truth = project(camera, marker_corners(marker), cv2.Rodrigues(rot)[0], tvec)
+            d = c.reshape(4, 2) - truth
+            assert np.sqrt(np.mean(np.sum(d**2, axis=1))) < 0.6, (t, int(i), d)
+            diffs.append(d)
+            seen.add(int(i))
+    assert {m.id for m in layout.on("left_leg") + layout.on("right_leg")} <= seen
+    diffs = np.concatenate(diffs)
+    assert np.sqrt(np.mean(np.sum(diffs**2, axis=1))) < 0.35
+    assert np.all(np.abs(diffs.mean(axis=0)) < 0.1)
+
+
+def test_default_camera_sees_every_marker_on_a_real_walk_frame(compass):
+    """With the bundled camera and layout (both derived from the parameters), ArUco finds all four
+    leg markers and at least four ramp markers at the start of a walk."""
+    camera = load_camera(DATA / "camera" / "default.json")
+    assert_allclose(camera.matrix, default_camera_for(compass).matrix)
+    assert_allclose(np.concatenate(camera.ramp_pose), np.concatenate(default_camera_for(compass).ramp_pose),
+                    atol=1e-8)
+    layout = load_layout(DATA / "markers" / "default.json")
+    film = Filming(_walk(compass), compass, camera, layout, RenderOptions.preset(0, duration=0.05))
+    _, ids, _ = _detector(layout).detectMarkers(cv2.cvtColor(film.frame(0), cv2.COLOR_BGR2GRAY))
+    ids = set(ids.ravel().tolist())
+    assert {0, 1, 2, 3} <= ids
+    assert len(ids & {m.id for m in layout.on("ramp")}) >= 4
+
+
+def test_motion_reproduces_the_samples(compass):
+    table = _walk(compass, switch=0.2)
+    motion = Motion(table, compass)
+    for i in (0, 10, 25, 40):
+        t = table.time[i]
+        state = motion.state(t)
+        stance = str(table.stance[i])
+        poses = leg_poses(compass, table.signals["steer"][i], table.signals["lean"][i],
+                          table.signals["pitch_left"][i], table.signals["pitch_right"][i], stance,
+                          (table.signals["contact_x"][i], table.signals["contact_y"][i]))
+        for leg in "LR":
+            assert_allclose(state.hip[leg], poses.hip[leg], atol=1e-12)
+            assert_allclose(state.rotation[leg], poses.rotation[leg], atol=1e-12)
+        assert motion.stance_at(t) == stance
+        assert_allclose(motion.contact(state, stance),
+                        [table.signals["contact_x"][i], table.signals["contact_y"][i]], atol=1e-12)
+    # without contact columns the rolling is integrated: still a finite, continuous placement
+    bare = TrajectoryTable(table.time, {k: table.signals[k] for k in ("lean", "steer", "pitch_left",
+                                                                     "pitch_right")}, table.stance)
+    hips = np.array([Motion(bare, compass).state(t).hip["L"] for t in table.time])
+    assert np.all(np.isfinite(hips)) and np.max(np.abs(np.diff(hips, axis=0))) < 0.05
+
+
+def _small_camera(params):
+    return default_camera_for(params, 320, 180)
+
+
+def test_options_change_the_image_reproducibly(toy_params):
+    table = _walk(toy_params, duration=0.1, n=11)
+    cam, layout = _small_camera(toy_params), default_layout(toy_params)
+
+    def frames(options, seed):
+        film = Filming(table, toy_params, cam, layout, options, seed)
+        return np.array([film.frame(k) for k in range(len(film))]).astype(float), film
+
+    clean, _ = frames(RenderOptions(fps=30), 0)
+    noisy, _ = frames(RenderOptions(fps=30, noise_sd=6.0), 1)
+    again, _ = frames(RenderOptions(fps=30, noise_sd=6.0), 1)
+    other, _ = frames(RenderOptions(fps=30, noise_sd=6.0), 2)
+    assert np.array_equal(noisy, again)  # the seed reproduces every frame
+    assert not np.array_equal(noisy, other)
+    # per-pixel Gaussian noise of SD 6 grey levels (rounding adds 1/12 variance; clipping is rare)
+    assert np.std(noisy - clean) == pytest.approx(6.0, rel=0.05)
+    flick, film = frames(RenderOptions(fps=30, flicker=0.1), 3)
+    ratio = flick.mean(axis=(1, 2, 3)) / clean.mean(axis=(1, 2, 3))
+    assert_allclose(ratio, film.gains, atol=0.01)  # the gain recorded is the gain applied (saturation)
+    blurred, _ = frames(RenderOptions(fps=30, blur_subframes=5, exposure=1.0), 0)
+    assert not np.array_equal(blurred, clean) and np.abs(blurred - clean).max() > 20
+    occl, film = frames(RenderOptions(fps=30, occlusion=1.0), 4)
+    assert film.occluders and not np.array_equal(occl, clean)
+    jpeg, _ = frames(RenderOptions(fps=30, jpeg_quality=20), 0)
+    assert 0 < np.abs(jpeg - clean).mean() < 10
+    presets = [RenderOptions.preset(level) for level in (0, 1, 2, 3)]
+    assert [p.noise_sd for p in presets] == sorted(p.noise_sd for p in presets)
+    with pytest.raises(TypeError, match="unknown option"):
+        RenderOptions.preset(1, nosie_sd=1.0)
+    with pytest.raises(RenderError, match="noise level"):
+        RenderOptions.preset(7)
+    with pytest.raises(RenderError, match="exposure"):
+        RenderOptions(exposure=2.0)
+
+
+@pytest.mark.parametrize("name, fourcc", [("v.mp4", "mp4v"), ("v.avi", "MJPG")])
+def test_video_files_read_back(tmp_path, toy_params, name, fourcc):
+    table = _walk(toy_params, duration=0.3, n=31, switch=0.15)
+    out = tmp_path / name
+    result = render(table, toy_params, _small_camera(toy_params), default_layout(toy_params),
+                    RenderOptions.preset(1, fps=30), out, rng=7)
+    assert result.n_frames == 10  # frames at 0, 1/30, ..., 9/30 s within [0, 0.3]
+    cap = cv2.VideoCapture(str(out))
+    read_as = int(cap.get(cv2.CAP_PROP_FOURCC)).to_bytes(4, "little").decode().lower()
+    assert read_as in {"mp4v": ("mp4v", "fmp4"), "MJPG": ("mjpg",)}[fourcc]  # FFmpeg says FMP4
+    n = 0
+    while True:
+        ok, frame = cap.read()
+        if not ok:
+            break
+        assert frame.shape == (180, 320, 3)
+        n += 1
+    cap.release()
+    assert n == 10
+    truth = read_trajectory(tmp_path / (out.stem + ".truth.csv"))
+    assert_allclose(truth.time, np.arange(10) / 30)
+    assert list(truth.stance) == ["L"] * 5 + ["R"] * 5  # heel strike at 0.15 s = frame 4.5
+    assert truth.events[0]["foot"] == "R"
+    meta = json.loads((tmp_path / (out.stem + ".json")).read_text())
+    assert meta["frames"] == 10 and meta["seed"] == 7 and meta["codec"] == fourcc
+    assert truth.metadata["frames"] == 10  # V.json is also the truth trajectory's metadata
+    assert load_layout(tmp_path / (out.stem + ".markers.json")).dictionary == "DICT_4X4_50"
+    assert load_camera(tmp_path / (out.stem + ".camera.json")).size == (320, 180)
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".")) == []
+
+
+def test_interrupted_render_leaves_nothing(tmp_path, toy_params):
+    def stop(k, n):
+        if k == 3:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        render(_walk(toy_params, duration=0.3, n=31), toy_params, _small_camera(toy_params),
+               default_layout(toy_params), RenderOptions(fps=30), tmp_path / "v.mp4", rng=0, progress=stop)
+    assert list(tmp_path.iterdir()) == []
+
+
+# --- the command line -----------------------------------------------------------------------------
+
+@pytest.fixture
+def walk_csv(tmp_path, compass):
+    path = tmp_path / "walk.csv"
+    write_trajectory(_walk(compass, duration=0.1, n=11), path)
+    return path
+
+
+def test_cli_renders(tmp_path, walk_csv, capsys):
+    out = tmp_path / "out" / "v.mp4"
+    out.parent.mkdir()
+    code = main(["render", str(walk_csv), "--params", str(COMPASS), "--size", "320x180", "--fps", "30",
+                 "--noise", "2", "--seed", "3", "--out", str(out)])
+    assert code == 0, capsys.readouterr().err
+    assert sorted(p.name for p in out.parent.iterdir()) == [
+        "v.camera.json", "v.json", "v.markers.json", "v.mp4", "v.truth.csv", "v.truth.events.csv"]
+    assert json.loads((out.parent / "v.json").read_text())["options"]["level"] == 2
+
+
+def _bad_camera(tmp_path, compass):
+    path = tmp_path / "cam.json"
+    save_camera(default_camera_for(compass, 640, 360), path)
+    return path
+
+
+@pytest.mark.parametrize("case", ["missing trajectory", "bad params", "malformed camera", "size mismatch",
+                                  "missing columns", "bad markers", "bad noise", "clobbers input",
+                                  "bad suffix"])
+def test_cli_bad_input_one_line_no_file(tmp_path, walk_csv, compass, capsys, case):
+    out = tmp_path / "o" / "v.mp4"
+    out.parent.mkdir()
+    args = ["render", str(walk_csv), "--params", str(COMPASS), "--out", str(out)]
+    if case == "missing trajectory":
+        args[1] = str(tmp_path / "nope.csv")
+    elif case == "bad params":
+        bad = tmp_path / "p.toml"
+        bad.write_text("leg_length = 1.0\nbogus = 2\n")
+        args[3] = str(bad)
+    elif case == "malformed camera":
+        cam = tmp_path / "c.json"
+        cam.write_text('{"image_size": [640, 360]}')
+        args += ["--camera", str(cam)]
+    elif case == "size mismatch":
+        args += ["--camera", str(_bad_camera(tmp_path, compass)), "--size", "320x180"]
+    elif case == "missing columns":
+        walk_csv.write_text("time,lean,steer,pitch_left,stance\n0,0,0,0,L\n0.1,0,0,0,L\n")
+    elif case == "bad markers":
+        m = tmp_path / "m.json"
+        m.write_text('{"dictionary": "DICT_4X4_50", "markers": []}')
+        args += ["--markers", str(m)]
+    elif case == "bad noise":
+        args += ["--noise", "9"]
+    elif case == "clobbers input":
+        args[-1] = str(walk_csv.with_suffix(".mp4"))  # its V.json would be the trajectory's walk.json
+    elif case == "bad suffix":
+        args[-1] = str(out.with_suffix(".gif"))
+    before = sorted(p.name for p in tmp_path.rglob("*"))
+    code = main(args)
+    err = capsys.readouterr().err
+    assert code == 2
+    assert len(err.strip().splitlines()) == 1, err
+    assert list(out.parent.iterdir()) == []
+    assert sorted(p.name for p in tmp_path.rglob("*")) == before

@@ -1,0 +1,598 @@
+"""The synthetic video renderer: a trajectory drawn as the camera would film the walking toy.
+
+Frame ``k`` of a video at ``fps`` frames per second shows the trajectory at ``t0 + k / fps``
+(``t0`` = the trajectory's first sample unless ``start`` is given). The walker between samples is
+interpolated: the four angles and the left hip point (both continuous through heel strikes) with
+monotone cubic (PCHIP) interpolation, so that the rolling contact need not be re-integrated; the
+stance leg switches at the heel-strike events. With motion blur the shutter is open over
+``[t - e / (2 fps), t + e / (2 fps)]`` (``e`` = ``exposure``) and the frame averages
+``blur_subframes`` renders spread evenly over that interval; the truth is the state at ``t``.
+
+Outputs, written atomically together (temporary names in the output folder, renamed at the end,
+removed on any error or Ctrl-C):
+
+- ``V.mp4`` (codec ``mp4v``) or ``V.avi`` (``MJPG``);
+- ``V.truth.csv`` and ``V.truth.events.csv``: the trajectory format, one row per frame, with the
+  angles drawn and the stance foot's contact point, and the heel strikes in the rendered span;
+- ``V.json``: metadata (trajectory source, parameters, camera, marker layout, options, seed, frame
+  times, occluders, gains). It is also the truth trajectory's metadata file, since
+  ``model.trajectory`` names the metadata of ``V.truth.csv`` ``V.json``;
+- ``V.camera.json``, ``V.markers.json``: the camera and the marker layout used, ready for
+  ``toywalk track --camera ... --markers ...``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+import time as _time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from .camera import Camera
+from .markers import MarkerLayout
+from .scene import Scene, WalkerState
+
+__all__ = ["NOISE_LEVELS", "Filming", "Motion", "RenderError", "RenderOptions", "RenderResult", "render",
+           "output_paths"]
+
+_CODECS = {".mp4": "mp4v", ".avi": "MJPG"}
+
+
+class RenderError(ValueError):
+    """Bad render input (trajectory, options, output path); one line saying what and what to do."""
+
+
+@dataclasses.dataclass(frozen=True)
+class RenderOptions:
+    """How to film: frame rate and the camera's imperfections.
+
+    Attributes
+    ----------
+    fps : float
+        Frame rate (frames/s).
+    noise_sd : float
+        Per-pixel Gaussian sensor noise, standard deviation in grey levels (0-255 scale).
+    blur_subframes : int
+        Renders averaged per frame for motion blur (1 = none).
+    exposure : float
+        Shutter-open time as a fraction of the frame interval (used when ``blur_subframes > 1``).
+    flicker : float
+        Standard deviation of the per-frame exposure gain (relative; 0.02 = 2 %).
+    occlusion : float
+        Expected fraction of frames with an occluder (a bar or blob passing in front of the lens).
+    jpeg_quality : int or None
+        Extra JPEG compression of each frame (1-100) before the video codec; None = none.
+    codec : str or None
+        FourCC; None picks ``mp4v`` for .mp4 and ``MJPG`` for .avi.
+    start : float or None
+        Time of frame 0 (s); None = the trajectory's first sample.
+    duration : float or None
+        Length to render (s); None = to the trajectory's last sample.
+    shadows : bool
+        Draw the walker's shadow on the ramp.
+    level : int or None
+        The ``--noise`` preset these options came from, if any (recorded in the metadata).
+    """
+
+    fps: float = 60.0
+    noise_sd: float = 0.0
+    blur_subframes: int = 1
+    exposure: float = 0.5
+    flicker: float = 0.0
+    occlusion: float = 0.0
+    jpeg_quality: int | None = None
+    codec: str | None = None
+    start: float | None = None
+    duration: float | None = None
+    shadows: bool = True
+    level: int | None = None
+
+    def __post_init__(self) -> None:
+        def finite(name, lo=0.0, strict=False):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) \
+                    or (v <= lo if strict else v < lo):
+                raise RenderError(f"{name} must be a finite number {'>' if strict else '>='} {lo}, got {v!r}")
+
+        finite("fps", strict=True)
+        finite("noise_sd")
+        finite("exposure")
+        finite("flicker")
+        finite("occlusion")
+        if self.exposure > 1:
+            raise RenderError(f"exposure is a fraction of the frame interval, 0..1, got {self.exposure}")
+        if self.occlusion > 1:
+            raise RenderError(f"occlusion is a fraction of frames, 0..1, got {self.occlusion}")
+        if not isinstance(self.blur_subframes, int) or isinstance(self.blur_subframes, bool) \
+                or not 1 <= self.blur_subframes <= 64:
+            raise RenderError(f"blur_subframes must be an integer 1..64, got {self.blur_subframes!r}")
+        if self.jpeg_quality is not None and not (isinstance(self.jpeg_quality, int)
+                                                  and 1 <= self.jpeg_quality <= 100):
+            raise RenderError(f"jpeg_quality must be None or an integer 1..100, got {self.jpeg_quality!r}")
+        if self.codec is not None and not (isinstance(self.codec, str) and len(self.codec) == 4):
+            raise RenderError(f"codec must be a four-character code such as 'mp4v', got {self.codec!r}")
+        if self.start is not None:
+            finite("start", lo=-math.inf)
+        if self.duration is not None:
+            finite("duration", strict=True)
+
+    @classmethod
+    def preset(cls, level: int, **overrides) -> RenderOptions:
+        """Options of a ``--noise`` level (:data:`NOISE_LEVELS`), with keyword overrides."""
+        if level not in NOISE_LEVELS:
+            raise RenderError(f"noise level must be one of {', '.join(map(str, NOISE_LEVELS))}, "
+                              f"got {level!r}")
+        unknown = set(overrides) - {f.name for f in dataclasses.fields(cls)}
+        if unknown:
+            raise TypeError(f"unknown option(s): {', '.join(sorted(unknown))}")
+        return cls(**{**NOISE_LEVELS[level], "level": level, **overrides})
+
+
+#: ``--noise`` presets: 0 a perfect camera; 1 (default) light noise, mild blur, slight flicker;
+#: 2 a poor webcam (stronger noise and blur, flicker, occasional occluders); 3 harsh (heavy noise,
+#: full-frame blur, strong flicker, frequent occluders, JPEG artefacts).
+NOISE_LEVELS = {
+    0: {"noise_sd": 0.0, "blur_subframes": 1, "exposure": 0.0, "flicker": 0.0, "occlusion": 0.0,
+        "jpeg_quality": None},
+    1: {"noise_sd": 2.0, "blur_subframes": 3, "exposure": 0.4, "flicker": 0.02, "occlusion": 0.0,
+        "jpeg_quality": None},
+    2: {"noise_sd": 5.0, "blur_subframes": 5, "exposure": 0.8, "flicker": 0.05, "occlusion": 0.08,
+        "jpeg_quality": None},
+    3: {"noise_sd": 10.0, "blur_subframes": 7, "exposure": 1.0, "flicker": 0.10, "occlusion": 0.2,
+        "jpeg_quality": 40},
+}
+
+
+@dataclasses.dataclass(frozen=True)
+class RenderResult:
+    """What :func:`render` wrote.
+
+    Attributes
+    ----------
+    paths : dict of str to Path
+        ``video``, ``truth``, ``metadata``, ``camera``, ``markers``.
+    frame_times : ndarray, shape (n_frames,)
+    seconds : float
+        Wall-clock render time.
+    """
+
+    paths: dict
+    frame_times: np.ndarray
+    seconds: float
+
+    @property
+    def n_frames(self) -> int:
+        return len(self.frame_times)
+
+
+def output_paths(out: str | Path) -> dict:
+    """The files written for a video ``V.mp4``: video, truth (V.truth.csv), metadata (V.json),
+    camera (V.camera.json), markers (V.markers.json)."""
+    out = Path(out)
+    stem = out.with_suffix("")
+    return {"video": out, "truth": stem.with_name(stem.name + ".truth.csv"),
+            "metadata": stem.with_suffix(".json"),
+            "camera": stem.with_name(stem.name + ".camera.json"),
+            "markers": stem.with_name(stem.name + ".markers.json")}
+
+
+# --- the walker's motion between samples ----------------------------------------------------------
+
+class Motion:
+    """The walker's placement at any time of a trajectory.
+
+    Uses the samples whose four angles are present and whose stance is 'L' or 'R'. Where the
+    trajectory has ``contact_x, contact_y`` the hips are placed from them (model.kinematics); where
+    it has not, the stance foot's rolling is integrated from the angles (``v_O = omega x (O - C)``,
+    model.md section 3, trapezoidal), starting with the contact at the ramp origin, and at each
+    stance change the new contact is the landing foot's lowest point.
+
+    Parameters
+    ----------
+    table : TrajectoryTable
+    params : Params
+    """
+
+    def __init__(self, table, params):
+        from scipy.interpolate import PchipInterpolator
+        from toywalk.model.kinematics import leg_poses
+
+        self.params = params
+        names = ("lean", "steer", "pitch_left", "pitch_right")
+        missing = [n for n in names if n not in table.signals]
+        if missing:
+            raise RenderError(f"trajectory lacks column(s) {', '.join(missing)}")
+        time = np.asarray(table.time, float)
+        ang = np.column_stack([table.signals[n] for n in names])
+        stance = np.asarray(table.stance)
+        ok = np.all(np.isfinite(ang), axis=1) & np.isin(stance, ("L", "R")) & np.isfinite(time)
+        if ok.sum() < 2:
+            raise RenderError("the trajectory needs at least two samples with all four angles and a stance")
+        time, ang, stance = time[ok], ang[ok], stance[ok]
+        if np.any(np.diff(time) <= 0):
+            raise RenderError("trajectory times must increase strictly")
+        have_contact = ("contact_x" in table.signals and "contact_y" in table.signals
+                        and np.all(np.isfinite(table.signals["contact_x"][ok]))
+                        and np.all(np.isfinite(table.signals["contact_y"][ok])))
+        self.contact_source = "trajectory" if have_contact else "integrated rolling"
+        if have_contact:
+            contact = np.column_stack([table.signals["contact_x"][ok], table.signals["contact_y"][ok]])
+        else:
+            contact = _integrate_contact(params, ang, stance)
+        hips = np.empty((len(time), 3))
+        for i in range(len(time)):
+            lean, steer, pl, pr = ang[i]
+            hips[i] = leg_poses(params, steer, lean, pl, pr, str(stance[i]), contact[i]).hip["L"]
+        self.time, self.stance = time, stance
+        self._interp = PchipInterpolator(time, np.column_stack([ang, hips]), axis=0, extrapolate=False)
+        self.events = sorted((float(e["time"]), str(e["foot"])) for e in table.events
+                             if e.get("foot") in ("L", "R") and math.isfinite(float(e["time"])))
+
+    @property
+    def span(self) -> tuple[float, float]:
+        return float(self.time[0]), float(self.time[-1])
+
+    def angles(self, t: float) -> np.ndarray:
+        """(lean, steer, pitch_left, pitch_right) (rad) at time ``t`` (clamped to the span)."""
+        return self._interp(float(np.clip(t, *self.span)))[:4]
+
+    def stance_at(self, t: float) -> str:
+        """The stance leg at ``t``: the last sample's at or before ``t``, or a heel strike's after it."""
+        i = max(0, int(np.searchsorted(self.time, t, side="right")) - 1)
+        foot, t_i = str(self.stance[i]), self.time[i]
+        for te, f in self.events:
+            if t_i < te <= t:
+                foot = f
+        return foot
+
+    def state(self, t: float) -> WalkerState:
+        from toywalk.model.kinematics import rotation
+
+        t = float(np.clip(t, *self.span))
+        v = self._interp(t)
+        lean, steer, pl, pr = v[:4]
+        rot = {"L": rotation(steer, lean, pl), "R": rotation(steer, lean, pr)}
+        hip_l = v[4:7]
+        hip = {"L": hip_l, "R": hip_l - float(self.params.hip_width) * rot["L"][:, 1]}
+        return WalkerState(rotation=rot, hip=hip)
+
+    def contact(self, state: WalkerState, stance: str) -> np.ndarray:
+        """The stance foot's lowest point (x, y) on the ramp (m), from the placed legs."""
+        return _lowest_point(self.params, state, stance)[:2]
+
+
+def _lowest_point(params, state: WalkerState, leg: str) -> np.ndarray:
+    """The lowest point of a leg's foot (ramp frame, m) (model.md section 2)."""
+    rot = state.rotation[leg]
+    ell, r, rho = float(params.leg_length), float(params.foot_radius), float(params.foot_lateral_radius)
+    centre = state.hip[leg] - (ell - r) * rot[:, 2]
+    n = rot[:, 1]
+    ez = np.array([0.0, 0.0, 1.0])
+    t = -ez + n[2] * n
+    norm = np.linalg.norm(t)
+    t = t / norm if norm > 0 else -ez
+    return centre + (r - rho) * t - rho * ez
+
+
+def _integrate_contact(params, ang: np.ndarray, stance: np.ndarray) -> np.ndarray:
+    """Contact points (n, 2) by integrating the stance foot's rolling (see :class:`Motion`)."""
+    from toywalk.model.kinematics import leg_poses
+
+    contact = np.zeros((len(ang), 2))
+    for i in range(1, len(ang)):
+        lean0, steer0, pl0, pr0 = ang[i - 1]
+        lean1, steer1, pl1, pr1 = ang[i]
+        s0, s1 = str(stance[i - 1]), str(stance[i])
+        poses0 = leg_poses(params, steer0, lean0, pl0, pr0, s0, contact[i - 1])
+        if s1 != s0:  # heel strike in between: the landing foot's lowest point
+            rot = {k: poses0.rotation[k] for k in "LR"}
+            state = WalkerState(rotation=rot, hip=poses0.hip)
+            contact[i] = _lowest_point(params, state, s1)[:2]
+            continue
+        poses1 = leg_poses(params, steer1, lean1, pl1, pr1, s0, (0.0, 0.0))
+        r0, r1 = poses0.rotation[s0], poses1.rotation[s0]
+        dtheta = cv2.Rodrigues(r1 @ r0.T)[0].ravel()  # omega dt, ramp frame
+        off0 = poses0.foot_centre[s0] - np.array([*contact[i - 1], 0.0])  # O - C
+        off1 = poses1.foot_centre[s0]  # contact at the origin: O - C
+        o1 = poses0.foot_centre[s0] + np.cross(dtheta, 0.5 * (off0 + off1))
+        contact[i] = (o1 - off1)[:2]
+    return contact
+
+
+# --- camera imperfections -------------------------------------------------------------------------
+
+def _occluders(n_frames: int, fraction: float, width: int, height: int, fps: float, rng) -> list:
+    """Occluder events: (first frame, n frames, kind, parameters), covering about ``fraction`` of
+    the frames; a dark bar sweeping across (an arm, a pole) or a blurred blob (a finger on the lens)."""
+    events = []
+    if fraction <= 0 or n_frames == 0:
+        return events
+    k = 0
+    mean_len = max(3, int(round(0.3 * fps)))  # about 0.3 s each
+    while k < n_frames:
+        gap = rng.exponential(mean_len * (1 - fraction) / fraction)
+        k += int(gap)
+        if k >= n_frames:
+            break
+        length = max(2, int(rng.integers(mean_len // 2, 2 * mean_len)))
+        if rng.random() < 0.6:
+            params = {"kind": "bar", "x0": float(rng.uniform(-0.2, 0.3) * width),
+                      "x1": float(rng.uniform(0.7, 1.2) * width),
+                      "width": float(rng.uniform(0.05, 0.12) * width),
+                      "angle": float(rng.uniform(-0.3, 0.3)),
+                      "colour": [float(c) for c in rng.uniform(20, 90, 3)]}
+            if rng.random() < 0.5:
+                params["x0"], params["x1"] = params["x1"], params["x0"]
+        else:
+            params = {"kind": "blob", "x": float(rng.uniform(0.2, 0.8) * width),
+                      "y": float(rng.uniform(0.2, 0.8) * height),
+                      "radius": float(rng.uniform(0.06, 0.15) * height),
+                      "colour": [float(c) for c in rng.uniform(30, 110, 3)]}
+        events.append((k, length, params))
+        k += length
+    return events
+
+
+def _draw_occluder(img: np.ndarray, event, k: int) -> None:
+    first, length, p = event
+    s = (k - first) / max(1, length - 1)
+    h, w = img.shape[:2]
+    if p["kind"] == "bar":
+        x = p["x0"] + s * (p["x1"] - p["x0"])
+        half = 0.5 * p["width"]
+        dx = math.tan(p["angle"]) * h
+        pts = np.array([[x - half, -1], [x + half, -1], [x + half + dx, h], [x - half + dx, h]])
+        cv2.fillConvexPoly(img, np.round(pts * 16).astype(np.int32), p["colour"], cv2.LINE_AA, 4)
+    else:
+        mask = np.zeros((h, w), np.uint8)
+        cv2.circle(mask, (int(p["x"]), int(p["y"])), int(p["radius"]), 255, -1, cv2.LINE_AA)
+        blur = int(p["radius"] * 0.5) | 1
+        mask = cv2.GaussianBlur(mask, (blur, blur), 0).astype(np.float32)[..., None] / 255
+        col = np.array(p["colour"], np.float32)
+        img[:] = np.clip(img * (1 - mask) + col * mask + 0.5, 0, 255).astype(np.uint8)
+
+
+# --- the renderer ---------------------------------------------------------------------------------
+
+def _frame_times(motion: Motion, options: RenderOptions) -> np.ndarray:
+    t_first, t_last = motion.span
+    t0 = t_first if options.start is None else float(options.start)
+    t_end = t_last if options.duration is None else min(t_last, t0 + float(options.duration))
+    if t0 < t_first - 1e-12 or t0 > t_last:
+        raise RenderError(f"start {t0} s lies outside the trajectory ({t_first} .. {t_last} s)")
+    n = int(math.floor((t_end - t0) * options.fps + 1e-9)) + 1
+    return t0 + np.arange(n) / options.fps
+
+
+class Filming:
+    """A prepared shoot: the scene, the frame times and the imperfection schedule (gains,
+    occluders), drawn from ``rng`` in a fixed order so that a seed reproduces every frame.
+
+    Parameters
+    ----------
+    table, params, camera, layout, options, rng
+        As for :func:`render`.
+
+    Attributes
+    ----------
+    motion : Motion
+    scene : Scene
+    times : ndarray, shape (n_frames,)
+        Frame times (s).
+    gains : ndarray, shape (n_frames,)
+        Exposure gain of each frame.
+    occluders : list
+        (first frame, n frames, description) of each occluder.
+    """
+
+    def __init__(self, table, params, camera: Camera, layout: MarkerLayout, options: RenderOptions,
+                 rng=None):
+        if not isinstance(options, RenderOptions):
+            raise TypeError(f"options must be RenderOptions, got {type(options).__name__}")
+        if camera.ramp_pose is None:
+            raise RenderError("the camera has no ramp_pose: the renderer needs a fixed camera")
+        self.options, self.camera = options, camera
+        self.rng = np.random.default_rng(rng)
+        self.motion = Motion(table, params)
+        self.times = _frame_times(self.motion, options)
+        self.scene = Scene(params, layout, camera, shadows=options.shadows)
+        n = len(self.times)
+        self.gains = (1.0 + options.flicker * self.rng.standard_normal(n) if options.flicker > 0
+                      else np.ones(n))
+        self.occluders = _occluders(n, options.occlusion, camera.width, camera.height, options.fps,
+                                    self.rng)
+        sub = options.blur_subframes if options.exposure > 0 else 1
+        self.offsets = (np.linspace(-0.5, 0.5, sub) * options.exposure / options.fps if sub > 1
+                        else np.zeros(1))
+        self._acc = np.empty((*self.scene.background.shape[:2], 3), np.float32)
+        self._noise = np.empty((camera.height, camera.width, 3), np.float32)
+
+    def __len__(self) -> int:
+        return len(self.times)
+
+    def frame(self, k: int) -> np.ndarray:
+        """Frame ``k``, uint8 (height, width, 3), BGR. Frames must be drawn in order 0, 1, ... for
+        the noise to be reproducible (it is drawn from ``rng`` frame by frame)."""
+        options, t = self.options, float(self.times[k])
+        scene, motion = self.scene, self.motion
+        if len(self.offsets) == 1:
+            canvas = scene.draw(motion.state(t))
+        else:
+            acc = self._acc
+            acc[:] = 0
+            for dt in self.offsets:
+                cv2.accumulate(scene.draw(motion.state(t + dt)), acc)
+            canvas = cv2.convertScaleAbs(acc, alpha=1.0 / len(self.offsets))  # >= 0: rounds, saturates
+        frame = scene.finish(canvas)
+        for ev in self.occluders:
+            if ev[0] <= k < ev[0] + ev[1]:
+                _draw_occluder(frame, ev, k)
+        gain = float(self.gains[k])
+        if options.noise_sd > 0:
+            # OpenCV's generator (4x faster than NumPy's here), seeded from ``rng`` every frame
+            cv2.setRNGSeed(int(self.rng.integers(1, 2**31 - 1)))
+            cv2.randn(self._noise, (0.0, 0.0, 0.0), (1.0, 1.0, 1.0))  # every channel
+            frame = cv2.addWeighted(frame.astype(np.float32), gain, self._noise, float(options.noise_sd),
+                                    0.0, dtype=cv2.CV_8U)
+        elif gain != 1.0:
+            frame = cv2.convertScaleAbs(frame, alpha=gain)
+        if options.jpeg_quality is not None:
+            _, buf = cv2.imencode(".jpg", frame, [cv2.IMWRITE_JPEG_QUALITY, options.jpeg_quality])
+            frame = cv2.imdecode(buf, cv2.IMREAD_COLOR)
+        return frame
+
+    def truth(self, k: int) -> tuple[np.ndarray, str, np.ndarray]:
+        """(lean, steer, pitch_left, pitch_right) (rad), the stance leg and its contact (x, y) (m) at
+        frame ``k``."""
+        t = float(self.times[k])
+        stance = self.motion.stance_at(t)
+        return self.motion.angles(t), stance, self.motion.contact(self.motion.state(t), stance)
+
+
+def render(table, params, camera: Camera, layout: MarkerLayout, options: RenderOptions | None = None,
+           out_path: str | Path = "video.mp4", rng=None, *, source: str | dict | None = None,
+           progress=None) -> RenderResult:
+    """Render a trajectory to a video with its truth and metadata (module docstring).
+
+    Parameters
+    ----------
+    table : TrajectoryTable
+        Angles ``lean, steer, pitch_left, pitch_right`` (rad), ``stance``, ideally ``contact_x,
+        contact_y`` (m) and the heel-strike events.
+    params : Params
+        The walker drawn (its geometry).
+    camera : Camera
+        With a fixed ``ramp_pose``; its image size and distortion are the video's.
+    layout : MarkerLayout
+        Markers on the legs and the ramp.
+    options : RenderOptions, optional
+        Defaults to ``RenderOptions.preset(1)``.
+    out_path : str or Path
+        ``V.mp4`` or ``V.avi``; its folder must exist.
+    rng : int, Generator or None
+        Seeds every random draw (noise, flicker, occluders): ``np.random.default_rng(rng)``.
+    source : str or dict, optional
+        Where the trajectory came from, for the metadata.
+    progress : callable, optional
+        Called as ``progress(k, n_frames)`` after each frame.
+
+    Returns
+    -------
+    RenderResult
+    """
+    from toywalk.model.trajectory import TrajectoryTable, write_trajectory
+
+    t_start = _time.perf_counter()
+    options = RenderOptions.preset(1) if options is None else options
+    paths = output_paths(out_path)
+    video = paths["video"]
+    suffix = video.suffix.lower()
+    if suffix not in _CODECS:
+        raise RenderError(f"the video must be a .mp4 or .avi file, got {video.name}")
+    if not video.parent.is_dir():
+        raise RenderError(f"output folder does not exist: {video.parent}")
+    seed = rng if isinstance(rng, (int, np.integer)) or rng is None else "generator"
+    codec = options.codec or _CODECS[suffix]
+    film = Filming(table, params, camera, layout, options, rng)
+    motion, times, gains, occluders = film.motion, film.times, film.gains, film.occluders
+    n = len(times)
+
+    tag = f".{video.stem}.{os.getpid()}.tmp"
+    tmp = {"video": video.with_name(tag + suffix), "truth": video.with_name(tag + ".truth.csv"),
+           "metadata": video.with_name(tag + ".json"), "camera": video.with_name(tag + ".camera.json"),
+           "markers": video.with_name(tag + ".markers.json")}
+    tmp_truth_extra = [video.with_name(tag + ".truth.events.csv")]
+    final_truth_extra = [paths["truth"].with_name(paths["truth"].stem + ".events.csv")]
+    writer = None
+    done = []  # final files already in place (removed again if a later step fails)
+    try:
+        writer = cv2.VideoWriter(str(tmp["video"]), cv2.VideoWriter_fourcc(*codec), float(options.fps),
+                                 (camera.width, camera.height))
+        if not writer.isOpened():
+            raise RenderError(f"cannot open a {codec} video writer for {video.name}")
+        truth = np.empty((n, 6))
+        stances = []
+        for k in range(n):
+            writer.write(film.frame(k))
+            truth[k, :4], stance, truth[k, 4:] = film.truth(k)
+            stances.append(stance)
+            if progress is not None:
+                progress(k + 1, n)
+        writer.release()
+        writer = None
+        check = cv2.VideoCapture(str(tmp["video"]))
+        ok = check.isOpened()
+        check.release()
+        if not ok or tmp["video"].stat().st_size == 0:
+            raise RenderError(f"the {codec} video writer produced no readable file")
+        events = [{"time": te, "foot": f, "x": math.nan, "y": math.nan} for te, f in motion.events
+                  if times[0] <= te <= times[-1]]
+        for ev in table.events:  # keep the contact positions where the trajectory has them
+            for e in events:
+                if abs(e["time"] - float(ev["time"])) < 1e-12:
+                    e["x"], e["y"] = float(ev.get("x", math.nan)), float(ev.get("y", math.nan))
+        meta = {
+            "units": {"time": "s", "angles": "rad", "contact": "m"},
+            "source": {"kind": "render truth", "video": video.name, "trajectory": source,
+                       "trajectory_source": table.metadata.get("source"),
+                       "contact": motion.contact_source,
+                       "interpolation": "PCHIP (angles, left hip point)"},
+            "timestamps": ("frame k shows the trajectory at t0 + k / fps; with motion blur the shutter "
+                           "is open over t +- exposure / (2 fps)"),
+            "contact": "the stance foot's lowest point, from the drawn geometry",
+            "video": video.name,
+            "truth": paths["truth"].name,
+            "size": [camera.width, camera.height],
+            "fps": options.fps,
+            "frames": n,
+            "codec": codec,
+            "frame_times": times.tolist(),
+            "params": _params_dict(params),
+            "camera": camera.to_dict(),
+            "markers": layout.to_dict(),
+            "options": dataclasses.asdict(options),
+            "seed": int(seed) if isinstance(seed, np.integer) else seed,
+            "occluders": [{"first_frame": a, "frames": b, **p} for a, b, p in occluders],
+            "gains": gains.tolist(),
+            "software": _version(),
+        }
+        signals = {"lean": truth[:, 0], "steer": truth[:, 1], "pitch_left": truth[:, 2],
+                   "pitch_right": truth[:, 3], "contact_x": truth[:, 4], "contact_y": truth[:, 5]}
+        # the truth's metadata file NAME.json (model.trajectory's naming) is V.json itself
+        written = write_trajectory(TrajectoryTable(times, signals, stances, events, meta), tmp["truth"])
+        if written[2] != tmp["metadata"]:
+            raise RuntimeError(f"unexpected trajectory metadata name {written[2]}")
+        tmp["camera"].write_text(json.dumps(camera.to_dict(), indent=2) + "\n")
+        tmp["markers"].write_text(json.dumps(layout.to_dict(), indent=2) + "\n")
+        moves = [*zip(tmp_truth_extra, final_truth_extra, strict=True),
+                 *((tmp[key], paths[key]) for key in ("truth", "metadata", "camera", "markers", "video"))]
+        for a, b in moves:
+            os.replace(a, b)
+            done.append(b)
+    except BaseException:
+        if writer is not None:
+            writer.release()
+        for p in [*tmp.values(), *tmp_truth_extra, *done]:
+            p.unlink(missing_ok=True)
+        raise
+    return RenderResult(paths=paths, frame_times=times, seconds=_time.perf_counter() - t_start)
+
+
+def _params_dict(params) -> dict:
+    from toywalk.model.parameters import PARAMETER_NAMES
+
+    return dict(zip(PARAMETER_NAMES, (float(v) for v in params.vector()), strict=True))
+
+
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return f"toywalk {version('toywalk')}"
+    except PackageNotFoundError:
+        return "toywalk (not installed)"
