@@ -362,4 +362,8 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    # Run the imported module's main, so that command modules and this entry point share one
+    # CommandError class (as __main__, this file would define a second one).
+    from toywalk.sysid.cli import main as _main
+
+    sys.exit(_main())

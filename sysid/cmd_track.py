@@ -1,0 +1,117 @@
+"""``toywalk track V.mp4 [--camera C.json] [--markers M.json] --out M.csv [--overlay O.mp4]``.
+
+Writes the trajectory files of the raw per-frame estimates (``M.csv``, ``M.events.csv``,
+``M.json``: the input of ``fit``, errors independent from frame to frame) and of their smoothed
+copy (``M.smoothed.csv`` and its companions), and optionally an overlay video with the detected
+markers and each body's axes.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+from pathlib import Path
+
+__all__ = ["cmd_track", "register"]
+
+_DATA = Path(__file__).resolve().parents[1] / "data"
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser("track", help="extract the walker's angles and heel strikes from a video")
+    p.add_argument("video", help="video file (e.g. from toywalk render)")
+    p.add_argument("--camera", default=None, help="camera file (default: data/camera/default.json)")
+    p.add_argument("--markers", default=None, help="marker layout (default: data/markers/default.json)")
+    p.add_argument("--out", required=True, help="trajectory file NAME.csv")
+    p.add_argument("--overlay", default=None, help="write a video with detections drawn (.mp4)")
+    p.add_argument("--full-search", action="store_true",
+                   help="search the whole frame every time instead of around predicted markers (slower)")
+    p.set_defaults(func=cmd_track)
+
+
+def _sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def _default(given, kind: str, name: str) -> Path:
+    if given is not None:
+        return Path(given)
+    path = _DATA / kind / name
+    from toywalk.sysid.cli import CommandError
+
+    if not path.exists():
+        raise CommandError(f"no --{'camera' if kind == 'camera' else 'markers'} given and the bundled "
+                           f"default {path} is missing")
+    return path
+
+
+def cmd_track(args) -> int:
+    from toywalk.model.trajectory import trajectory_paths, write_trajectory
+    from toywalk.sysid.cli import CommandError, _version
+    from toywalk.tracking.camera import CameraError, load_camera
+    from toywalk.tracking.markers import LayoutError, load_layout
+    from toywalk.tracking.track import TrackError, track_video
+
+    video = Path(args.video)
+    out = Path(args.out)
+    if out.suffix != ".csv":
+        raise CommandError(f"--out must name a .csv file, got {out}")
+    if not out.parent.exists():
+        raise CommandError(f"output folder does not exist: {out.parent}")
+    overlay = Path(args.overlay) if args.overlay else None
+    if overlay is not None and (overlay.suffix.lower() != ".mp4" or not overlay.parent.exists()):
+        raise CommandError(f"--overlay must name a .mp4 file in an existing folder, got {overlay}")
+    if not video.is_file():
+        raise CommandError(f"video file not found: {video}")
+    camera_path = _default(args.camera, "camera", "default.json")
+    markers_path = _default(args.markers, "markers", "default.json")
+    try:
+        camera = load_camera(camera_path)
+        layout = load_layout(markers_path)
+        result, source = track_video(video, camera, layout, overlay=overlay, roi=not args.full_search)
+    except (CameraError, LayoutError, TrackError) as err:
+        raise CommandError(str(err)) from err
+    n = len(result.time)
+    gaps = {k: int(sum(1 for v in result.raw[k] if math.isnan(v))) for k in result.raw}
+    metadata = {
+        "source": {"kind": "video", "video": str(video), "sha256": _sha256(video),
+                   "frames": n, "width": source.width, "height": source.height,
+                   "nominal_fps": source.nominal_fps},
+        "timestamps": "per-frame container timestamps (OpenCV CAP_PROP_POS_MSEC read after each "
+                      "frame), not an assumed frame rate",
+        "units": {"time": "s", "angles": "rad", "sd": "rad"},
+        "camera": {"file": str(camera_path), **camera.to_dict()},
+        "markers": {"file": str(markers_path), "dictionary": layout.dictionary,
+                    "description": layout.description},
+        "ramp_pose": result.ramp,
+        "pixel_sd": result.pixel_sd,
+        "frames_with_leg": result.frames_with,
+        "gaps": gaps,
+        "search": result.counts,
+        "sd_method": "PnP covariance sigma^2 (J^T J)^-1, pixel sigma pooled over the video from "
+                     "reprojection residuals, propagated to the angles; ramp-pose error not included",
+        "events_method": "kink (rate jump) in both leg pitches, continuous piecewise-quadratic "
+                         "breakpoint fit; the leading leg strikes; contact position unknown",
+        "software": _version(),
+    }
+    smooth_path = out.with_name(out.stem + ".smoothed.csv")
+    raw_meta = {**metadata, "signals": "raw per-frame estimates",
+                "smoothed_copy": smooth_path.name}
+    smooth_meta = {**metadata, "signals": f"smoothed: {result.smoothing}, over stretches without gaps "
+                                          "or heel strikes; sd scaled by the filter's noise gain"}
+    write_trajectory(result.table(smoothed=True, metadata=smooth_meta), smooth_path)
+    try:
+        write_trajectory(result.table(metadata=raw_meta), out)
+    except BaseException:
+        for p in trajectory_paths(smooth_path):
+            p.unlink(missing_ok=True)
+        raise
+    both = sum(1 for i in range(n) if not (math.isnan(result.raw["pitch_left"][i])
+                                           or math.isnan(result.raw["pitch_right"][i])))
+    print(f"tracked {n} frames ({both} with both legs), {len(result.events)} heel strikes; "
+          f"ramp: {result.ramp['source']} -> {out}")
+    return 0

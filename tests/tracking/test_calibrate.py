@@ -1,0 +1,111 @@
+"""Camera calibration from synthetic ChArUco views: recovery of a known camera, and refusals."""
+
+import json
+import subprocess
+
+import cv2
+import numpy as np
+import pytest
+from toywalk.tracking.calibrate import DEFAULT_BOARD, CalibrationError, calibrate, save_calibration
+from toywalk.tracking.camera import Camera, load_camera
+
+from .synthetic import TOYWALK, compose, draw_plane
+
+TRUE = Camera(width=640, height=480, matrix=np.array([[620.0, 0, 331.5], [0, 618.0, 236.0], [0, 0, 1]]),
+              distortion=np.array([-0.12, 0.06, 0.0008, -0.0005, 0.0]))
+
+
+def board_views(n=10, noise=1.5, seed=0):
+    """Views of the default board at varied tilts and positions, grey-level noise of SD ``noise``."""
+    rng = np.random.default_rng(seed)
+    board = DEFAULT_BOARD.board()
+    px = 100  # texture pixels per square
+    sx, sy = DEFAULT_BOARD.squares
+    tex = board.generateImage((sx * px, sy * px))
+    w, h = sx * DEFAULT_BOARD.square_length, sy * DEFAULT_BOARD.square_length
+    views = []
+    for _ in range(n):
+        tilt = rng.uniform(-0.5, 0.5, 2)
+        # board-to-camera: centre the board, tilt it, put it 0.45-0.6 m away, off-centre
+        centre = (np.zeros(3), np.array([-w / 2, -h / 2, 0.0]))
+        tilted = compose((np.array([tilt[0], tilt[1], rng.uniform(-0.3, 0.3)]), np.zeros(3)), centre)
+        pose = compose((np.zeros(3), np.array([rng.uniform(-0.06, 0.06), rng.uniform(-0.04, 0.04),
+                                               rng.uniform(0.45, 0.6)])), tilted)
+        image = np.full((TRUE.height, TRUE.width), 90, np.uint8)
+        # board frame: y down the printed image, so the texture is flipped for draw_plane's +y-up rows
+        draw_plane(image, TRUE, np.flipud(tex), (0.0, w, 0.0, h), *pose, ss=2)
+        image = np.clip(image + rng.normal(0, noise, image.shape), 0, 255).astype(np.uint8)
+        views.append(image)
+    return views
+
+
+@pytest.fixture(scope="module")
+def views():
+    return board_views()
+
+
+def test_recovers_a_known_camera(views):
+    result = calibrate(views)
+    k, d = result.camera.matrix, result.camera.distortion
+    # tolerances: a few times the calibration's own standard errors at this noise (about 0.5 px in
+    # fx, fy, cx, cy and 0.005 in k1 for ten views of 24 corners), with room for the renderer
+    assert result.rms < 0.3  # px: corners of a rendered board with 1.5 grey levels of noise
+    np.testing.assert_allclose([k[0, 0], k[1, 1]], [620.0, 618.0], rtol=5e-3)
+    np.testing.assert_allclose([k[0, 2], k[1, 2]], [331.5, 236.0], atol=3.0)
+    assert abs(d[0] - TRUE.distortion[0]) < 0.02 and abs(d[1] - TRUE.distortion[1]) < 0.1
+    assert result.camera.reprojection_error == pytest.approx(result.rms)
+    # the projection of the test camera and the calibrated one agree across the image
+    pts = np.column_stack([np.random.default_rng(1).uniform(-0.35, 0.35, (50, 2)) * [1, 0.7], np.ones(50)])
+    a, _ = cv2.projectPoints(pts, np.zeros(3), np.zeros(3), TRUE.matrix, TRUE.distortion)
+    b, _ = cv2.projectPoints(pts, np.zeros(3), np.zeros(3), k, d)
+    assert np.max(np.linalg.norm(a - b, axis=-1)) < 1.5  # px
+
+
+def test_saved_file_has_board_and_loads(views, tmp_path):
+    result = calibrate(views[:6])
+    path = tmp_path / "cam.json"
+    save_calibration(result, path)
+    data = json.loads(path.read_text())
+    assert data["calibration"]["board"] == DEFAULT_BOARD.to_dict()
+    cam = load_camera(path)
+    np.testing.assert_allclose(cam.matrix, result.camera.matrix)
+    assert cam.reprojection_error == pytest.approx(result.rms)
+
+
+def test_two_views_are_refused(views):
+    with pytest.raises(CalibrationError, match=r"only 2 usable view\(s\)"):
+        calibrate(views[:2])
+
+
+def test_blurred_garbage_is_refused():
+    rng = np.random.default_rng(2)
+    junk = [cv2.GaussianBlur(rng.integers(0, 255, (480, 640), dtype=np.uint8), (31, 31), 8)
+            for _ in range(6)]
+    with pytest.raises(CalibrationError, match=r"only 0 usable view"):
+        calibrate(junk)
+
+
+def test_high_rms_is_refused(views):
+    # a limit below what this noise gives: the refusal and its message name the number
+    message = r"RMS reprojection error [0-9.]+ px exceeds the limit 0.01 px"
+    with pytest.raises(CalibrationError, match=message):
+        calibrate(views, max_rms=0.01)
+
+
+def test_command_line(views, tmp_path):
+    paths = []
+    for k, v in enumerate(views[:6]):
+        p = tmp_path / f"v{k}.png"
+        cv2.imwrite(str(p), v)
+        paths.append(p)
+    out = tmp_path / "cam.json"
+    run = subprocess.run([TOYWALK, "calibrate", *map(str, paths),
+                          "--out", str(out)], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr
+    assert load_camera(out).width == 640
+    bad = subprocess.run([TOYWALK, "calibrate", str(paths[0]),
+                          str(tmp_path / "missing.png"), "--out", str(tmp_path / "c2.json")],
+                         capture_output=True, text=True, timeout=120)
+    assert bad.returncode == 2
+    assert "not found" in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "c2.json").exists()

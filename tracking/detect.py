@@ -1,0 +1,218 @@
+"""ArUco marker detection in a whole frame or in regions of interest, with sub-pixel corners.
+
+Corners come back in OpenCV's ArUco order (top-left, top-right, bottom-right, bottom-left of the
+marker as printed), as pixels ``(u, v)`` of the full frame (``camera.py`` conventions), whatever
+region was searched. Detection uses OpenCV's class API (``cv2.aruco.ArucoDetector``; Garrido-Jurado
+et al. 2014, Pattern Recognit. 47:2280, doi:10.1016/j.patcog.2014.01.005). Corners are then refined
+by :func:`refine_corners`: sub-pixel points on each of the marker's four outer edges (where the
+intensity profile across the edge crosses half-way between black and white), a straight line fitted
+to each edge (in undistorted coordinates when a camera is given, so lens distortion does not bend
+it), and the corners as the lines' intersections. On rendered markers this is about three times as
+accurate as ``cornerSubPix`` on the corners themselves, which is biased at the non-right-angled
+corners that perspective makes.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+__all__ = ["MarkerDetector", "Region", "dictionary_by_name", "merge_regions", "refine_corners"]
+
+#: A region of interest ``(x0, y0, x1, y1)``: columns x0..x1-1, rows y0..y1-1 (pixels).
+Region = tuple[int, int, int, int]
+
+
+def dictionary_by_name(name: str) -> cv2.aruco.Dictionary:
+    """The predefined ArUco dictionary called ``name`` (e.g. ``"DICT_4X4_50"``)."""
+    if not isinstance(name, str) or not name.startswith("DICT_") or not hasattr(cv2.aruco, name):
+        raise ValueError(f"unknown ArUco dictionary {name!r}; expected a name such as 'DICT_4X4_50'")
+    return cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, name))
+
+
+def merge_regions(regions, width: int, height: int) -> list[Region]:
+    """Clip regions to the image and merge overlapping ones (their bounding box) until none overlap."""
+    boxes = []
+    for x0, y0, x1, y1 in regions:
+        box = [max(0, int(x0)), max(0, int(y0)), min(width, int(x1)), min(height, int(y1))]
+        if box[2] - box[0] >= 8 and box[3] - box[1] >= 8:
+            boxes.append(box)
+    merged = True
+    while merged and len(boxes) > 1:
+        merged = False
+        for i in range(len(boxes)):
+            for j in range(i + 1, len(boxes)):
+                a, b = boxes[i], boxes[j]
+                if a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]:
+                    boxes[i] = [min(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]), max(a[3], b[3])]
+                    del boxes[j]
+                    merged = True
+                    break
+            if merged:
+                break
+    return [tuple(b) for b in boxes]
+
+
+def _sample(gray: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    """Bilinear samples of a grey image at pixels (u, v), shape (..., 2)."""
+    if isinstance(gray, _Shifted):
+        pts = pts - gray.offset
+        gray = gray.crop
+    flat = pts.reshape(-1, 1, 2).astype(np.float32)
+    out = cv2.remap(gray, flat[..., 0], flat[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    return out.reshape(pts.shape[:-1]).astype(float)
+
+
+def refine_corners(gray: np.ndarray, corners: np.ndarray, camera=None, *, samples: int = 12,
+                   iterations: int = 1) -> np.ndarray:
+    """Sub-pixel corners, shape (4, 2), of a dark marker square on a light margin from rough ones.
+
+    Parameters
+    ----------
+    gray : ndarray, shape (rows, cols), uint8 or float
+    corners : ndarray, shape (4, 2)
+        Rough corners (u, v) in ArUco's order; returned unchanged if an edge cannot be measured.
+    camera : Camera, optional
+        Fit the edge lines in undistorted coordinates.
+    samples : int
+        Points measured along each edge.
+    """
+    from .camera import undistort_pixels
+
+    c0 = np.asarray(corners, float).reshape(4, 2)
+    c = c0
+    s = np.linspace(0.15, 0.85, samples)
+    for _ in range(iterations):
+        a, b = c, np.roll(c, -1, axis=0)  # edge k runs from corner k to corner k + 1
+        side = float(np.mean(np.linalg.norm(b - a, axis=1)))
+        reach = max(1.5, min(4.0, 0.12 * side))  # px: about the black border cell, at most
+        steps = np.linspace(-reach, reach, int(4 * reach) + 1)
+        nt = len(steps)
+        direction = (b - a) / np.linalg.norm(b - a, axis=1, keepdims=True)
+        normal = np.column_stack([direction[:, 1], -direction[:, 0]])
+        outward = np.einsum("ij,ij->i", normal, a - c.mean(axis=0)) < 0
+        normal[outward] *= -1.0
+        base = a[:, None, :] + s[None, :, None] * (b - a)[:, None, :]  # (4, S, 2)
+        pts = base[:, :, None, :] + steps[None, None, :, None] * normal[:, None, None, :]
+        prof = _sample(gray, pts)  # (4, S, T): dark inside -> light outside
+        lo = prof[..., : nt // 3].mean(axis=-1)
+        hi = prof[..., -(nt // 3):].mean(axis=-1)
+        level = 0.5 * (lo + hi)
+        above = prof >= level[..., None]
+        j = np.argmax(above, axis=-1)
+        valid = (hi - lo > 20.0) & above.any(axis=-1) & (j > 0)  # 20 grey levels of contrast
+        j = np.clip(j, 1, nt - 1)
+        p1 = np.take_along_axis(prof, j[..., None], axis=-1)[..., 0]
+        p0 = np.take_along_axis(prof, (j - 1)[..., None], axis=-1)[..., 0]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            f = (level - p0) / (p1 - p0)
+        offset = steps[j - 1] + f * (steps[1] - steps[0])
+        edge = base + offset[..., None] * normal[:, None, :]  # (4, S, 2)
+        valid &= np.isfinite(offset)
+        if np.any(valid.sum(axis=1) < 4):
+            return c0
+        if camera is not None:
+            flat = undistort_pixels(camera, edge.reshape(-1, 2))
+            edge = flat.reshape(edge.shape)
+        # total-least-squares line of each edge's valid points, in closed form
+        w = valid.astype(float)
+        count = w.sum(axis=1)
+        mean = np.einsum("ks,ksd->kd", w, edge) / count[:, None]
+        dev = (edge - mean[:, None, :]) * w[..., None]
+        sxx = np.einsum("ks,ks->k", dev[..., 0], dev[..., 0])
+        syy = np.einsum("ks,ks->k", dev[..., 1], dev[..., 1])
+        sxy = np.einsum("ks,ks->k", dev[..., 0], dev[..., 1])
+        angle = 0.5 * np.arctan2(2 * sxy, sxx - syy)  # direction of largest spread
+        n = np.column_stack([-np.sin(angle), np.cos(angle)])
+        lines = np.column_stack([n, -np.einsum("kd,kd->k", n, mean)])
+        p = np.cross(np.roll(lines, 1, axis=0), lines)  # corner k joins edges k-1 and k
+        if np.any(np.abs(p[:, 2]) < 1e-12):
+            return c0
+        new = p[:, :2] / p[:, 2:]
+        if camera is not None:
+            new, _ = cv2.projectPoints(np.column_stack([new, np.ones(4)]), np.zeros(3), np.zeros(3),
+                                       camera.matrix, camera.distortion)
+            new = new.reshape(4, 2)
+        if np.max(np.linalg.norm(new - c0, axis=1)) > 0.5 * side:
+            return c0
+        c = new
+    return c
+
+
+class _Shifted:
+    """A crop that samples like the full frame (for refine_corners with a camera)."""
+
+    def __init__(self, crop, offset):
+        self.crop, self.offset = crop, offset
+
+
+class MarkerDetector:
+    """Find ArUco markers of one dictionary, in a whole image or in regions of interest.
+
+    Parameters
+    ----------
+    dictionary : str
+        OpenCV's name of the predefined dictionary, e.g. ``"DICT_4X4_50"``.
+    ids : iterable of int, optional
+        The marker ids of interest; others are ignored. None keeps all.
+    camera : Camera, optional
+        Lens model used when refining corners (edges are straight only once undistorted).
+    """
+
+    def __init__(self, dictionary: str = "DICT_4X4_50", *, ids=None, camera=None):
+        params = cv2.aruco.DetectorParameters()
+        params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_NONE  # refine_corners does it
+        self._params = params
+        self.camera = camera
+        self._dictionary = dictionary_by_name(dictionary)
+        self._detector = cv2.aruco.ArucoDetector(self._dictionary, params)
+        self.dictionary = dictionary
+        self.ids = None if ids is None else frozenset(int(i) for i in ids)
+
+    def detect(self, image: np.ndarray, regions=None) -> dict[int, np.ndarray]:
+        """Markers found in ``image`` (grey or BGR, shape (rows, cols[, 3])).
+
+        Parameters
+        ----------
+        regions : list of Region, optional
+            Search only these (non-overlapping, see :func:`merge_regions`) regions; None searches
+            the whole image.
+
+        Returns
+        -------
+        dict of int to ndarray, shape (4, 2)
+            Corner pixels (u, v) of the full image, by marker id. An id found twice (a printing or
+            dictionary clash) is dropped rather than guessed.
+        """
+        if image.ndim not in (2, 3):
+            raise ValueError(f"image must have shape (rows, cols) or (rows, cols, 3), got {image.shape}")
+        height, width = image.shape[:2]
+        if regions is None:
+            regions = [(0, 0, width, height)]
+        found: dict[int, np.ndarray] = {}
+        clashes: set[int] = set()
+        for x0, y0, x1, y1 in regions:
+            crop = image[y0:y1, x0:x1]
+            if crop.ndim == 3:
+                crop = cv2.cvtColor(crop, cv2.COLOR_BGR2GRAY)
+            corners, ids, _ = self._detector.detectMarkers(crop)
+            if ids is None:
+                continue
+            offset = np.array([x0, y0], dtype=float)
+            for c, i in zip(corners, ids.ravel(), strict=True):
+                i = int(i)
+                if self.ids is not None and i not in self.ids:
+                    continue
+                if i in found:
+                    clashes.add(i)
+                rough = c.reshape(4, 2).astype(float)
+                if self.camera is None:
+                    refined = refine_corners(crop, rough) + offset
+                else:  # the lens model needs full-frame pixels
+                    refined = refine_corners(_Shifted(crop, offset), rough + offset, self.camera)
+                # An edge the refinement could not fit (too short, cut by the crop) gives NaN:
+                # keep the detector's own corners rather than a broken marker.
+                found[i] = refined if np.all(np.isfinite(refined)) else rough + offset
+        for i in clashes:
+            del found[i]
+        return found

@@ -1,0 +1,230 @@
+"""Heel strikes from measured leg pitches, to sub-frame precision, and the stance foot per sample.
+
+A heel strike is a collision: the angles are continuous through it but their rates jump (model.md
+section 4). It is found where the leg pitches have a kink, without the walker's geometry (which
+``track`` does not know):
+
+1. candidates: for each frame interval, quadratic fits to the ``half_window`` samples before and
+   after it give the pitch rates on either side; a rate jump far beyond what the pitch noise
+   explains (a z-score over both legs) and a local maximum of it marks a candidate;
+2. refinement: a continuous, piecewise quadratic with one breakpoint ``tau`` is fitted to both
+   pitches around the candidate (least squares for each ``tau`` on a fine grid, then a parabola
+   through the best three): ``tau`` is the heel-strike time, between frames;
+3. the striking foot is the leading one, the leg with the smaller pitch at ``tau``
+   (``theta > 0``: hip ahead of the foot); it becomes the stance foot.
+
+Scuffing while the legs pass each other has no collision and so no kink. This is change-point
+estimation by segmented regression (Muggeo 2003, Stat. Med. 22:3055, doi:10.1002/sim.1545).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+__all__ = ["HeelStrike", "heel_strikes", "stance_from_events"]
+
+
+@dataclasses.dataclass(frozen=True)
+class HeelStrike:
+    """One heel strike.
+
+    Attributes
+    ----------
+    time : float
+        Sub-frame time (s).
+    foot : str
+        'L' or 'R', the foot that strikes (the new stance foot).
+    index : int
+        The last sample before ``time``.
+    rate_jump : float
+        Jump of the striking leg's pitch rate (rad/s).
+    z : float
+        Kink strength in standard errors of the rate difference.
+    """
+
+    time: float
+    foot: str
+    index: int
+    rate_jump: float
+    z: float
+
+
+def _side_rate(t, y, t0):
+    """Slope at t0 and its variance factor of a quadratic (or line) fitted to (t, y)."""
+    x = t - t0
+    deg = 2 if len(x) >= 4 else 1
+    a = np.vander(x, deg + 1, increasing=True)
+    try:
+        inv = np.linalg.inv(a.T @ a)
+    except np.linalg.LinAlgError:
+        return np.nan, np.inf
+    coef = inv @ (a.T @ y)
+    return coef[1], inv[1, 1]
+
+
+def _noise_sd(y) -> float:
+    """Robust SD of a signal's white noise from its fourth differences (MAD), NaN-aware.
+
+    Fourth differences of a smooth signal sampled densely are small; of white noise of SD sigma
+    they have SD sigma * sqrt(70). Near-uniform sampling is assumed (video frames).
+    """
+    d4 = np.convolve(y, [1.0, -4.0, 6.0, -4.0, 1.0], mode="valid")
+    d4 = d4[np.isfinite(d4)]
+    if len(d4) < 5:
+        return np.nan
+    return float(1.4826 * np.median(np.abs(d4 - np.median(d4))) / np.sqrt(70.0))
+
+
+def _window(ok, start, stop, step, count):
+    idx = []
+    i = start
+    while 0 <= i < len(ok) and len(idx) < count and abs(i - start) < 2 * count:
+        if ok[i]:
+            idx.append(i)
+        i += step
+    return idx if step > 0 else idx[::-1]
+
+
+def _breakpoint(t, ys, idx, lo, hi, n_grid=41):
+    """Best breakpoint tau in [lo, hi] of continuous piecewise quadratics through all ys[idx]."""
+    tt = t[idx]
+
+    def sse(tau):
+        x = tt - tau
+        left = x < 0
+        a = np.column_stack([np.ones_like(x), np.where(left, x, 0), np.where(left, x * x, 0),
+                             np.where(left, 0, x), np.where(left, 0, x * x)])
+        total, jumps = 0.0, []
+        for y in ys:
+            coef, *_ = np.linalg.lstsq(a, y[idx], rcond=None)
+            total += float(np.sum((a @ coef - y[idx]) ** 2))
+            jumps.append(coef[3] - coef[1])
+        return total, jumps
+
+    grid = np.linspace(lo, hi, n_grid)
+    vals = np.array([sse(g)[0] for g in grid])
+    k = int(np.argmin(vals))
+    tau = grid[k]
+    if 0 < k < n_grid - 1:
+        denom = vals[k - 1] - 2 * vals[k] + vals[k + 1]
+        if denom > 0:
+            tau = grid[k] + 0.5 * (vals[k - 1] - vals[k + 1]) / denom * (grid[1] - grid[0])
+    return float(tau), sse(tau)[1]
+
+
+def _refine(t, pl, pr, ok, k, half_window, span):
+    """Breakpoint near the interval (t[k], t[k+1]), searched over ``span`` samples either side."""
+    n = len(t)
+    idx = _window(ok, k, -1, -1, half_window)[::-1] + _window(ok, k + 1, n, 1, half_window)
+    if len(idx) < 2 * half_window:  # too near a gap or an end for a reliable fit
+        return None
+    lo = max(0, k - span + 1)
+    hi = min(n - 1, k + span)
+    return _breakpoint(t, (pl, pr), np.array(sorted(idx)), t[lo], t[hi])
+
+
+def heel_strikes(time, pitch_left, pitch_right, *, half_window: int = 5, min_z: float = 5.0,
+                 min_jump_fraction: float = 0.3,
+                 min_spread: float = np.radians(3.0)) -> list[HeelStrike]:
+    """Heel strikes in pitch series (rad) sampled at ``time`` (s), shape (n,) each; NaN = gap.
+
+    Parameters
+    ----------
+    half_window : int
+        Samples on each side used for the rate estimates and the breakpoint fit.
+    min_z : float
+        Minimum kink strength (rate jump over its standard error from the measured noise).
+    min_jump_fraction : float
+        Minimum size of a kink's rate jump (both legs) relative to the typical size of the
+        largest half of the kinks found: a collision changes the rates by about as much at every
+        step, noise much less.
+    min_spread : float
+        Minimum |pitch_left - pitch_right| (rad) at a heel strike: the legs are apart (rules out
+        the legs passing each other).
+    """
+    t = np.asarray(time, float)
+    pl, pr = np.asarray(pitch_left, float), np.asarray(pitch_right, float)
+    if not (t.shape == pl.shape == pr.shape) or t.ndim != 1:
+        raise ValueError(f"time and pitches must share shape (n,), got {t.shape}, {pl.shape}, {pr.shape}")
+    ok = np.isfinite(pl) & np.isfinite(pr) & np.isfinite(t)
+    sd = np.nanmax([_noise_sd(pl), _noise_sd(pr)]) if ok.sum() > 10 else np.nan
+    if not np.isfinite(sd):
+        return []
+    sd = max(sd, 1e-5)  # rad: a floor for noise-free (synthetic) signals
+    n = len(t)
+    z = np.zeros(n)
+    jumps = np.zeros((n, 2))
+    for k in range(n - 1):
+        if not (ok[k] and ok[k + 1]):
+            continue
+        before = _window(ok, k, -1, -1, half_window)
+        after = _window(ok, k + 1, n, 1, half_window)
+        if len(before) < 3 or len(after) < 3:
+            continue
+        t0 = 0.5 * (t[k] + t[k + 1])
+        zz = 0.0
+        for j, y in enumerate((pl, pr)):
+            rb, vb = _side_rate(t[before], y[before], t0)
+            ra, va = _side_rate(t[after], y[after], t0)
+            jumps[k, j] = ra - rb
+            zz += (ra - rb) ** 2 / (sd**2 * (vb + va))
+        z[k] = np.sqrt(zz)
+    candidates = []
+    k = 0
+    while k < n - 1:
+        lo, hi = max(0, k - half_window), min(n - 1, k + half_window + 1)
+        if z[k] < min_z or z[k] < z[lo:hi].max():
+            k += 1
+            continue
+        # The rate-jump score is smeared over the fit windows: search a wide bracket first, then
+        # refit with the window centred on the breakpoint found.
+        found = _refine(t, pl, pr, ok, k, half_window, span=3)
+        if found is None:
+            k += 1
+            continue
+        i0 = int(np.clip(np.searchsorted(t, found[0]) - 1, 0, n - 2))
+        found = _refine(t, pl, pr, ok, i0, half_window, span=1) or found
+        tau, rate_jumps = found
+        candidates.append((k, tau, rate_jumps))
+        k = hi
+    if not candidates:
+        return []
+    # A collision changes the rates by about as much at every step; noise kinks are far smaller.
+    size = np.array([np.hypot(*c[2]) for c in candidates])
+    reference = np.median(np.sort(size)[len(size) // 2:])
+    events: list[HeelStrike] = []
+    for (k, tau, rate_jumps), jump_size in zip(candidates, size, strict=True):
+        if jump_size < min_jump_fraction * reference:
+            continue
+        i0 = int(np.clip(np.searchsorted(t, tau) - 1, 0, n - 2))
+        w = (tau - t[i0]) / (t[i0 + 1] - t[i0])
+        spread = (1 - w) * (pl[i0] - pr[i0]) + w * (pl[i0 + 1] - pr[i0 + 1])
+        if not abs(spread) >= min_spread:
+            continue
+        foot = "R" if spread > 0 else "L"  # the leading leg has the smaller pitch
+        jump = rate_jumps[1] if foot == "R" else rate_jumps[0]
+        events.append(HeelStrike(time=tau, foot=foot, index=i0, rate_jump=float(jump), z=float(z[k])))
+    return events
+
+
+def stance_from_events(time, events, pitch_left=None, pitch_right=None) -> np.ndarray:
+    """Stance foot ('L', 'R') per sample: the last foot to strike; before the first strike, the other.
+
+    Samples with no event on record (no heel strike at all) are '' (unknown) unless pitches are
+    given, in which case the trailing leg (larger pitch) is taken as the stance leg.
+    """
+    t = np.asarray(time, float)
+    stance = np.full(t.shape, "", dtype="<U1")
+    if events:
+        first = events[0]
+        stance[t < first.time] = "R" if first.foot == "L" else "L"
+        for ev in events:
+            stance[t >= ev.time] = ev.foot
+    elif pitch_left is not None and pitch_right is not None:
+        pl, pr = np.asarray(pitch_left, float), np.asarray(pitch_right, float)
+        ok = np.isfinite(pl) & np.isfinite(pr)
+        stance[ok & (pl > pr)] = "L"
+        stance[ok & (pl <= pr)] = "R"
+    return stance

@@ -1,0 +1,586 @@
+"""Video to trajectory: markers, leg poses, walker angles, heel strikes (pipeline.md, ``track``).
+
+Per frame (:class:`Tracker`):
+
+1. predict each body's pose from its last two (constant velocity) and search for markers only in
+   regions of interest around the predicted corners of its markers that face the camera; the whole
+   frame is searched when a body has no prediction (not yet found, or lost), at growing intervals
+   while it stays lost;
+2. estimate each body's pose in the camera frame from all its visible marker corners jointly
+   (:func:`toywalk.tracking.pose.estimate_pose`), with ``(J^T J)^-1`` kept for the covariance.
+
+After the last frame (:meth:`Tracker.finish`):
+
+3. the ramp pose: the camera file's fixed ``ramp_pose``, else one pose fitted to the ramp markers of
+   all frames jointly (the camera and the ramp are fixed), else, if the frames disagree (a moving
+   camera), each frame's own;
+4. the leg rotations in the ramp frame give ``steer, lean, pitch_left, pitch_right`` through
+   :func:`toywalk.model.kinematics.angles_from_rotations` (one leg seen: steer and lean from that
+   leg's hip axis, the other pitch a gap); standard deviations propagate
+   ``sigma^2 (J^T J)^-1``, with the pixel noise ``sigma`` pooled over the video from the
+   reprojection residuals, through the angle functions (finite differences);
+5. heel strikes and stance (:mod:`toywalk.tracking.events`) from the raw pitches;
+6. a smoothed copy of the signals (Savitzky-Golay, Savitzky & Golay 1964, Anal. Chem. 36:1627,
+   doi:10.1021/ac60214a047) over stretches without gaps or heel strikes (the rates jump there).
+
+Missing samples are NaN, never invented. Times are the container's per-frame timestamps.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+import time as _time
+from pathlib import Path
+
+import cv2
+import numpy as np
+from scipy.signal import savgol_coeffs, savgol_filter
+
+from ..model.kinematics import angles_from_rotations, rotation
+from ..model.trajectory import SIGNALS, TrajectoryTable
+from .camera import Camera
+from .detect import MarkerDetector, merge_regions
+from .events import heel_strikes, stance_from_events
+from .markers import MarkerLayout, body_points
+from .pose import estimate_pose
+
+__all__ = ["FrameSource", "TrackError", "TrackResult", "Tracker", "angles_with_sd", "open_video",
+           "track_frames", "track_video"]
+
+LEGS = {"left_leg": "L", "right_leg": "R"}
+
+
+class TrackError(ValueError):
+    """Bad input to the tracker (unreadable video, size mismatch, no markers): one-line message."""
+
+
+# --- video input ----------------------------------------------------------------------------------
+
+class FrameSource:
+    """Frames of a video file with the container's timestamps.
+
+    Iterating yields ``(time, image)``: seconds (``CAP_PROP_POS_MSEC`` read after each frame, the
+    presentation time of that frame) and a BGR array (rows, cols, 3). At the end it checks that as
+    many frames decoded as the container declares and that the times increase, raising
+    :class:`TrackError` otherwise (a truncated or corrupt file).
+    """
+
+    def __init__(self, path: str | Path):
+        self.path = Path(path)
+        if not self.path.exists():
+            raise TrackError(f"video file not found: {self.path}")
+        if not self.path.is_file():
+            raise TrackError(f"not a video file: {self.path}")
+        # FFmpeg's own messages ("moov atom not found") would add lines to the one-line errors
+        os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
+        self._cap = cv2.VideoCapture(str(self.path))
+        if not self._cap.isOpened():
+            raise TrackError(f"cannot open video {self.path}: not a readable video file (corrupt or "
+                             "truncated?)")
+        self.declared_frames = int(self._cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
+        self.width = int(self._cap.get(cv2.CAP_PROP_FRAME_WIDTH))
+        self.height = int(self._cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
+        self.nominal_fps = float(self._cap.get(cv2.CAP_PROP_FPS) or 0.0)
+        self.frames_read = 0
+        self.decode_seconds = 0.0
+
+    def __iter__(self):
+        last = -math.inf
+        try:
+            while True:
+                start = _time.perf_counter()
+                ok, image = self._cap.read()
+                self.decode_seconds += _time.perf_counter() - start
+                if not ok or image is None:
+                    break
+                t = self._cap.get(cv2.CAP_PROP_POS_MSEC) / 1000.0
+                if not (math.isfinite(t) and t > last):
+                    raise TrackError(f"{self.path}: frame {self.frames_read} has timestamp {t:.6g} s, "
+                                     f"not after the previous {last:.6g} s: unusable timestamps")
+                last = t
+                self.frames_read += 1
+                yield t, image
+        finally:
+            self._cap.release()
+        if self.frames_read == 0:
+            raise TrackError(f"{self.path}: no frame could be decoded (corrupt or empty video)")
+        if self.declared_frames > 0 and self.frames_read < self.declared_frames:
+            raise TrackError(f"{self.path}: decoded only {self.frames_read} of the "
+                             f"{self.declared_frames} frames the container declares (truncated or corrupt)")
+
+
+def open_video(path: str | Path) -> FrameSource:
+    """A :class:`FrameSource` for ``path`` (raises :class:`TrackError` if it cannot be opened)."""
+    return FrameSource(path)
+
+
+# --- per-frame tracking ---------------------------------------------------------------------------
+
+@dataclasses.dataclass
+class _Body:
+    name: str
+    points: dict  # marker id -> (4, 3) corners in the body frame
+    centres: np.ndarray  # (k, 3) marker centres
+    normals: np.ndarray  # (k, 3) marker face normals
+    ids: list
+    sides: np.ndarray  # (k,) marker sides (m)
+    history: list = dataclasses.field(default_factory=list)  # [(frame, time, rvec, tvec)]
+
+
+def _make_bodies(layout: MarkerLayout, names) -> dict[str, _Body]:
+    out = {}
+    for name in names:
+        markers = layout.on(name)
+        if not markers:
+            continue
+        pts = body_points(layout, name)
+        ids = [m.id for m in markers]
+        normals = np.array([cv2.Rodrigues(m.rvec.reshape(3, 1))[0][:, 2] for m in markers])
+        out[name] = _Body(name=name, points=pts, ids=ids, centres=np.array([m.tvec for m in markers]),
+                          normals=normals, sides=np.array([m.side for m in markers]))
+    return out
+
+
+class Tracker:
+    """Frame-by-frame marker search and body poses; :meth:`finish` turns them into angles.
+
+    Parameters
+    ----------
+    camera : Camera
+    layout : MarkerLayout
+    roi : bool
+        Search regions of interest around predicted marker positions (default); False searches the
+        whole frame every time (slower; a reference for tests).
+    max_full_search_interval : int
+        While a body is lost, the whole frame is searched at intervals 1, 2, 4, ... frames, up to this.
+    outlier_rms : float
+        A body's fit with a larger RMS reprojection error (pixels) is retried without each of its
+        markers in turn.
+    """
+
+    def __init__(self, camera: Camera, layout: MarkerLayout, *, roi: bool = True,
+                 max_full_search_interval: int = 16, outlier_rms: float = 0.5):
+        if not isinstance(camera, Camera):
+            raise TypeError(f"camera must be a Camera, got {type(camera).__name__}")
+        if not isinstance(layout, MarkerLayout):
+            raise TypeError(f"layout must be a MarkerLayout, got {type(layout).__name__}")
+        self.camera = camera
+        self.layout = layout
+        names = ["left_leg", "right_leg"] + (["ramp"] if camera.ramp_pose is None else [])
+        self.bodies = _make_bodies(layout, names)
+        if not any(name in self.bodies for name in LEGS):
+            raise TrackError("the marker layout has no marker on either leg")
+        if camera.ramp_pose is None and "ramp" not in self.bodies:
+            raise TrackError("the camera file has no ramp_pose and the marker layout no ramp marker: "
+                             "the ramp frame cannot be found")
+        wanted = [i for b in self.bodies.values() for i in b.ids]
+        self._owner = {i: b.name for b in self.bodies.values() for i in b.ids}
+        self.detector = MarkerDetector(layout.dictionary, ids=wanted, camera=camera)
+        self.roi = roi
+        self.max_full_search_interval = int(max_full_search_interval)
+        self.outlier_rms = float(outlier_rms)
+        self.times: list[float] = []
+        self.poses: dict[str, list] = {name: [] for name in self.bodies}
+        self.detections: list[dict] = []
+        self.counts = {"frames": 0, "full_searches": 0, "roi_searches": 0}
+        self._full_interval = 1
+        self._last_full = -10**9
+        self.track_seconds = 0.0
+
+    # prediction and search regions
+    def _predict(self, body: _Body, frame: int):
+        hist = [h for h in body.history if frame - h[0] <= 3]
+        if not hist:
+            return None
+        f1, _, r1, t1 = hist[-1]
+        if len(hist) >= 2:
+            f0, _, r0, t0 = hist[-2]
+            k = (frame - f1) / (f1 - f0)
+            # constant velocity; rvec increments of a few degrees add up to first order
+            return r1 + k * (r1 - r0), t1 + k * (t1 - t0), (r1 - r0, t1 - t0)
+        return r1, t1, (np.zeros(3), np.zeros(3))
+
+    def _regions(self, body: _Body, pred) -> list:
+        rvec, tvec, (dr, dt) = pred
+        rot = cv2.Rodrigues(rvec.reshape(3, 1))[0]
+        centres = body.centres @ rot.T + tvec
+        normals = body.normals @ rot.T
+        facing = np.einsum("ij,ij->i", normals, centres) < 0
+        regions = []
+        for k, marker_id in enumerate(body.ids):
+            if not facing[k]:
+                continue
+            uv = self._project(body.points[marker_id], rvec, tvec)
+            if not np.all(np.isfinite(uv)):
+                continue
+            lo, hi = uv.min(axis=0), uv.max(axis=0)
+            size = float(np.max(hi - lo))
+            # margin: the marker's quiet zone plus how far a prediction error of one frame's motion
+            # moves it (the motion itself is already in the prediction)
+            motion = self._project(body.points[marker_id], rvec + dr, tvec + dt) - uv
+            slack = 0.35 * size + 8.0 + float(np.nanmax(np.abs(motion))) if np.all(np.isfinite(motion)) \
+                else 0.5 * size + 8.0
+            regions.append((lo[0] - slack, lo[1] - slack, hi[0] + slack + 1, hi[1] + slack + 1))
+        return regions
+
+    def _project(self, points, rvec, tvec):
+        uv, _ = cv2.projectPoints(points.reshape(-1, 1, 3), rvec.reshape(3, 1), tvec.reshape(3, 1),
+                                  self.camera.matrix, self.camera.distortion)
+        return uv.reshape(-1, 2)
+
+    def process(self, t: float, image: np.ndarray) -> dict:
+        """Track one frame (time ``t`` in s, BGR or grey image); returns this frame's record.
+
+        The record holds ``markers`` (id -> corners (4, 2)) and ``poses`` (body -> PoseEstimate).
+        """
+        start = _time.perf_counter()
+        frame = len(self.times)
+        if frame == 0 and image.shape[1::-1] != self.camera.size:
+            raise TrackError(f"the video frames are {image.shape[1]}x{image.shape[0]} pixels but the "
+                             f"camera file describes {self.camera.width}x{self.camera.height}")
+        preds = {name: self._predict(b, frame) if self.roi else None for name, b in self.bodies.items()}
+        lost = [name for name, p in preds.items() if p is None]
+        found: dict = {}
+        searched_full = False
+        regions = []
+        for name, p in preds.items():
+            if p is not None:
+                regions += self._regions(self.bodies[name], p)
+        if regions:
+            found = self.detector.detect(image, merge_regions(regions, self.camera.width,
+                                                              self.camera.height))
+            self.counts["roi_searches"] += 1
+        # bodies predicted but not found in their regions count as lost
+        for name, p in preds.items():
+            if p is not None and not any(self._owner[i] == name for i in found):
+                lost.append(name)
+        if lost and frame - self._last_full >= self._full_interval:
+            full = self.detector.detect(image)
+            searched_full = True
+            self.counts["full_searches"] += 1
+            self._last_full = frame
+            for i, c in full.items():
+                found.setdefault(i, c)
+        poses = {}
+        for name, body in self.bodies.items():
+            ids = [i for i in body.ids if i in found]
+            if not ids:
+                self.poses[name].append(None)
+                continue
+            guess = preds[name][:2] if preds[name] is not None else None
+            est = self._fit_body(body, ids, found, guess)
+            self.poses[name].append(est)
+            if est is not None:
+                poses[name] = est
+                body.history.append((frame, t, est.rvec, est.tvec))
+                del body.history[:-2]
+        if searched_full:
+            still_lost = [n for n in lost if n not in poses]
+            self._full_interval = (1 if not still_lost
+                                   else min(2 * self._full_interval, self.max_full_search_interval))
+        self.times.append(float(t))
+        self.detections.append(found)
+        self.counts["frames"] += 1
+        self.track_seconds += _time.perf_counter() - start
+        return {"markers": found, "poses": poses}
+
+    def _fit_body(self, body: _Body, ids: list, found: dict, guess):
+        """Pose from all visible markers; a marker that disagrees with the others (partly hidden,
+        a wrong corner) is dropped when leaving it out makes the fit much better."""
+        def fit(use):
+            obj = np.concatenate([body.points[i] for i in use])
+            img = np.concatenate([found[i] for i in use])
+            return estimate_pose(self.camera, obj, img, guess=guess)
+
+        est = fit(ids)
+        if len(ids) >= 2 and (est is None or est.rms > self.outlier_rms):
+            trials = [(fit([j for j in ids if j != i]), i) for i in ids]
+            trials = [(e, i) for e, i in trials if e is not None]
+            if trials:
+                best, dropped = min(trials, key=lambda x: x[0].rms)
+                if est is None or best.rms < 0.5 * est.rms:
+                    self.counts["markers_dropped"] = self.counts.get("markers_dropped", 0) + 1
+                    est = best
+        return est
+
+    def draw(self, image: np.ndarray, record: dict) -> np.ndarray:
+        """The frame with the detected markers outlined and each body's axes drawn (in place)."""
+        if record["markers"]:
+            ids = np.array(list(record["markers"]), dtype=np.int32).reshape(-1, 1)
+            corners = [c.reshape(1, 4, 2).astype(np.float32) for c in record["markers"].values()]
+            cv2.aruco.drawDetectedMarkers(image, corners, ids)
+        poses = dict(record["poses"])
+        if self.camera.ramp_pose is not None:
+            rv, tv = self.camera.ramp_pose
+            cv2.drawFrameAxes(image, self.camera.matrix, self.camera.distortion, rv, tv, 0.05)
+        for name, est in poses.items():
+            length = 0.03 if name in LEGS else 0.05
+            cv2.drawFrameAxes(image, self.camera.matrix, self.camera.distortion, est.rvec, est.tvec,
+                              length)
+        return image
+
+    def finish(self, *, smoothing_window: int = 7, smoothing_order: int = 3) -> TrackResult:
+        """Angles, their standard deviations, heel strikes, stance and smoothed signals."""
+        n = len(self.times)
+        if n == 0:
+            raise TrackError("no frames to track")
+        time = np.asarray(self.times)
+        seen = {name: sum(p is not None for p in self.poses.get(name, [])) for name in LEGS}
+        if not any(seen.values()):
+            raise TrackError(f"no leg markers found in any of the {n} frames")
+        pixel_sd = {name: _pooled_pixel_sd(self.poses[name]) for name in self.bodies}
+        ramp = self._ramp_poses(n, pixel_sd.get("ramp"))
+        raw = {k: np.full(n, np.nan) for k in SIGNALS}
+        sd = {k: np.full(n, np.nan) for k in SIGNALS}
+        for i in range(n):
+            r_ramp = ramp["rotations"][i]
+            if r_ramp is None:
+                continue
+            legs = {}
+            for name, foot in LEGS.items():
+                est = self.poses[name][i] if name in self.poses else None
+                if est is not None:
+                    legs[foot] = (est.rvec, est.covariance(pixel_sd[name])[:3, :3])
+            if not legs:
+                continue
+            values, sds = angles_with_sd(r_ramp, legs)
+            for k in SIGNALS:
+                raw[k][i], sd[k][i] = values[k], sds[k]
+        events = heel_strikes(time, raw["pitch_left"], raw["pitch_right"])
+        stance = stance_from_events(time, events, raw["pitch_left"], raw["pitch_right"])
+        smooth, smooth_sd = _smooth(time, raw, sd, events, smoothing_window, smoothing_order)
+        return TrackResult(time=time, raw=raw, raw_sd=sd, smooth=smooth, smooth_sd=smooth_sd,
+                           stance=stance, events=events, pixel_sd=pixel_sd, ramp=ramp["summary"],
+                           frames_with=seen, counts=dict(self.counts),
+                           smoothing={"method": "Savitzky-Golay", "window": smoothing_window,
+                                      "order": smoothing_order},
+                           poses={k: v for k, v in self.poses.items()},
+                           track_seconds=self.track_seconds)
+
+    def _ramp_poses(self, n: int, ramp_sd) -> dict:
+        if self.camera.ramp_pose is not None:
+            rv, tv = self.camera.ramp_pose
+            rot = cv2.Rodrigues(rv.reshape(3, 1))[0]
+            return {"rotations": [rot] * n,
+                    "summary": {"source": "camera file (fixed ramp_pose)", "rvec": rv, "tvec": tv}}
+        frames = [i for i, p in enumerate(self.poses["ramp"]) if p is not None]
+        if not frames:
+            raise TrackError(f"no ramp marker found in any of the {n} frames and the camera file has "
+                             "no ramp_pose: the ramp frame is unknown")
+        body = self.bodies["ramp"]
+        pick = frames if len(frames) <= 400 else [frames[k] for k in
+                                                  np.linspace(0, len(frames) - 1, 400).astype(int)]
+        # A static ramp: fit one pose to each corner's mean position over the frames (the same
+        # least-squares optimum as stacking every frame, without repeated object points, which
+        # the closed-form PnP solvers reject).
+        obj, img = [], []
+        for m in body.ids:
+            seen = [self.detections[i][m] for i in pick if m in self.detections[i]]
+            if seen:
+                obj.append(body.points[m])
+                img.append(np.mean(seen, axis=0))
+        first = self.poses["ramp"][pick[0]]
+        guess = (first.rvec, first.tvec) if first is not None else None
+        joint = estimate_pose(self.camera, np.concatenate(obj), np.concatenate(img),
+                              guess=guess, max_rms=np.inf)
+        if joint is None:
+            raise TrackError("the ramp markers do not fit one pose: the ramp frame is unknown")
+        per_frame_rms = []
+        for i in pick:
+            ids = [m for m in body.ids if m in self.detections[i]]
+            o = np.concatenate([body.points[m] for m in ids])
+            uv = self._project(o, joint.rvec, joint.tvec)
+            per_frame_rms.append(float(np.sqrt(np.mean((uv - np.concatenate(
+                [self.detections[i][m] for m in ids])) ** 2))))
+        limit = max(1.0, 4.0 * (ramp_sd or 0.0))
+        static = float(np.median(per_frame_rms)) <= limit
+        if static:
+            rot = cv2.Rodrigues(joint.rvec.reshape(3, 1))[0]
+            return {"rotations": [rot] * n,
+                    "summary": {"source": f"ramp markers, one fixed pose fitted to {len(pick)} frames",
+                                "rvec": joint.rvec, "tvec": joint.tvec, "rms_px": joint.rms}}
+        rots = [None if p is None else cv2.Rodrigues(p.rvec.reshape(3, 1))[0] for p in self.poses["ramp"]]
+        return {"rotations": rots,
+                "summary": {"source": "ramp markers, each frame's own pose (the camera moves: frames "
+                                      f"disagree with one fixed pose by {np.median(per_frame_rms):.2g} px)"}}
+
+
+def _pooled_pixel_sd(poses) -> float:
+    """Pixel noise SD pooled over frames, robustly: the median over frames of each frame's residual
+    RMS corrected for the six fitted parameters (``rms * sqrt(2n / (2n - 6))``), scaled so that
+    it estimates the SD for Gaussian noise (the median of a chi distribution lies below its RMS)."""
+    values = [p.rms * math.sqrt(2 * p.n_points / (2 * p.n_points - 6))
+              for p in poses if p is not None and 2 * p.n_points > 6]
+    if not values:
+        return 0.5  # pixels: a conservative guess when no frame has redundant points
+    dof = np.median([2 * p.n_points - 6 for p in poses if p is not None and 2 * p.n_points > 6])
+    from scipy.stats import chi
+
+    ratio = chi.median(dof) / math.sqrt(dof)  # median of rms/sigma for dof degrees of freedom
+    return max(float(np.median(values)) / ratio, 0.02)  # floor: sub-pixel corners are never better
+
+
+def _angles(r_ramp: np.ndarray, rvecs: dict) -> np.ndarray:
+    """(lean, steer, pitch_left, pitch_right) from leg rvecs (camera frame); NaN for a missing leg."""
+    rot = {f: r_ramp.T @ cv2.Rodrigues(np.asarray(v, float).reshape(3, 1))[0] for f, v in rvecs.items()}
+    if "L" in rot and "R" in rot:
+        steer, lean, pl, pr = angles_from_rotations(rot["L"], rot["R"])
+        return np.array([lean, steer, pl, pr])
+    foot, r = next(iter(rot.items()))
+    b2 = r[:, 1]
+    lean = float(np.arcsin(np.clip(b2[2], -1.0, 1.0)))
+    steer = float(np.arctan2(-b2[0], b2[1]))
+    local = rotation(steer, lean, 0.0).T @ r
+    pitch = float(np.arctan2(local[0, 2], local[2, 2]))
+    return np.array([lean, steer, pitch if foot == "L" else np.nan, pitch if foot == "R" else np.nan])
+
+
+def angles_with_sd(r_ramp: np.ndarray, legs: dict) -> tuple[dict, dict]:
+    """Walker angles and their SDs from leg orientations seen by the camera.
+
+    Parameters
+    ----------
+    r_ramp : ndarray, shape (3, 3)
+        Rotation of the ramp frame into the camera frame.
+    legs : dict {'L', 'R'} -> (rvec, covariance)
+        Each seen leg's rotation (camera frame, Rodrigues, rad) and its 3x3 covariance (rad^2).
+
+    Returns
+    -------
+    values, sds : dict of SIGNALS name -> float (rad); NaN for the pitch of a leg not seen.
+    """
+    base = _angles(r_ramp, {f: v[0] for f, v in legs.items()})
+    var = np.zeros(4)
+    h = 1e-6
+    for foot, (_, cov) in legs.items():
+        jac = np.zeros((4, 3))
+        for j in range(3):
+            step = np.zeros(3)
+            step[j] = h
+            shifted = {f: (np.asarray(v[0], float) + step if f == foot else v[0]) for f, v in legs.items()}
+            jac[:, j] = (_angles(r_ramp, shifted) - base) / h
+        jac = np.nan_to_num(jac)
+        var += np.einsum("ij,jk,ik->i", jac, cov, jac)
+    sd = np.sqrt(var)
+    sd[~np.isfinite(base)] = np.nan
+    names = ("lean", "steer", "pitch_left", "pitch_right")
+    return dict(zip(names, base, strict=True)), dict(zip(names, sd, strict=True))
+
+
+def _smooth(time, raw, sd, events, window, order):
+    """Savitzky-Golay smoothing over stretches free of gaps and heel strikes (rates jump there)."""
+    smooth = {k: v.copy() for k, v in raw.items()}
+    smooth_sd = {k: v.copy() for k, v in sd.items()}
+    gain = math.sqrt(float(np.sum(savgol_coeffs(window, order) ** 2)))
+    cuts = np.searchsorted(time, [e.time for e in events])
+    for k in raw:
+        ok = np.isfinite(raw[k])
+        seg_id = np.cumsum(np.concatenate([[0], (np.diff(ok.astype(int)) != 0).astype(int)]))
+        breaks = np.zeros(len(time), dtype=int)
+        breaks[cuts[cuts < len(time)]] = 1
+        seg_id = seg_id * 10**6 + np.cumsum(breaks)
+        for s in np.unique(seg_id[ok]):
+            idx = np.flatnonzero((seg_id == s) & ok)
+            if len(idx) >= window:
+                smooth[k][idx] = savgol_filter(raw[k][idx], window, order, mode="interp")
+                smooth_sd[k][idx] = sd[k][idx] * gain
+    return smooth, smooth_sd
+
+
+# --- results --------------------------------------------------------------------------------------
+
+@dataclasses.dataclass
+class TrackResult:
+    """What :meth:`Tracker.finish` found.
+
+    Attributes
+    ----------
+    time : ndarray, shape (n,)
+        Frame timestamps (s).
+    raw, raw_sd : dict of str -> ndarray, shape (n,)
+        Per-frame angles ``lean, steer, pitch_left, pitch_right`` (rad) and their SDs; NaN = gap.
+    smooth, smooth_sd : dict of str -> ndarray, shape (n,)
+        The same, smoothed (see ``smoothing``).
+    stance : ndarray of str, shape (n,)
+    events : list of HeelStrike
+    pixel_sd : dict body -> float
+        Pooled reprojection noise (pixels).
+    ramp : dict
+        Where the ramp pose came from, and the pose.
+    frames_with : dict body -> int
+        Frames in which each leg's pose was found.
+    counts : dict
+        Frames, whole-frame and region searches.
+    """
+
+    time: np.ndarray
+    raw: dict
+    raw_sd: dict
+    smooth: dict
+    smooth_sd: dict
+    stance: np.ndarray
+    events: list
+    pixel_sd: dict
+    ramp: dict
+    frames_with: dict
+    counts: dict
+    smoothing: dict
+    poses: dict
+    track_seconds: float = 0.0
+
+    def table(self, *, smoothed: bool = False, metadata=None) -> TrajectoryTable:
+        """The trajectory-file table of the raw (default) or smoothed signals."""
+        values, sds = (self.smooth, self.smooth_sd) if smoothed else (self.raw, self.raw_sd)
+        signals = {k: values[k] for k in SIGNALS}
+        signals.update({f"{k}_sd": sds[k] for k in SIGNALS})
+        events = [{"time": e.time, "foot": e.foot, "x": math.nan, "y": math.nan} for e in self.events]
+        return TrajectoryTable(self.time, signals, self.stance, events, metadata or {})
+
+
+def track_frames(frames, camera: Camera, layout: MarkerLayout, *, overlay=None, roi: bool = True,
+                 **finish_options) -> TrackResult:
+    """Track an iterable of ``(time, image)``; ``overlay(image)`` receives each annotated frame."""
+    tracker = Tracker(camera, layout, roi=roi)
+    for t, image in frames:
+        record = tracker.process(t, image)
+        if overlay is not None:
+            overlay(tracker.draw(image, record))
+    return tracker.finish(**finish_options)
+
+
+def track_video(path: str | Path, camera: Camera, layout: MarkerLayout, *, overlay: str | Path | None = None,
+                roi: bool = True, **finish_options) -> tuple[TrackResult, FrameSource]:
+    """Track a video file; optionally write an overlay video (MPEG-4) to ``overlay``.
+
+    Returns the result and the :class:`FrameSource` (frame counts, decode time). The overlay is
+    written to a temporary name and renamed into place only if tracking succeeds.
+    """
+    source = open_video(path)
+    if (source.width, source.height) != camera.size:
+        raise TrackError(f"the video is {source.width}x{source.height} pixels but the camera file "
+                         f"describes {camera.width}x{camera.height}")
+    writer = None
+    tmp = None
+    sink = None
+    if overlay is not None:
+        overlay = Path(overlay)
+        tmp = overlay.with_name(f".{overlay.stem}.tmp{overlay.suffix}")
+        fps = source.nominal_fps if source.nominal_fps > 0 else 30.0  # playback rate only
+        writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*"mp4v"), fps, camera.size)
+        if not writer.isOpened():
+            raise TrackError(f"cannot write the overlay video {overlay}")
+        sink = writer.write
+    try:
+        result = track_frames(source, camera, layout, overlay=sink, roi=roi, **finish_options)
+        if writer is not None:
+            writer.release()
+            writer = None
+            tmp.replace(overlay)
+    finally:
+        if writer is not None:
+            writer.release()
+        if tmp is not None:
+            tmp.unlink(missing_ok=True)
+    return result, source
