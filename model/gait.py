@@ -15,13 +15,15 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
 from .parameters import Params
 from .walker import STATE_NAMES, Step, StepFailure, Walker, is_planar_symmetric
 
-__all__ = ["Gait", "GaitNotFound", "find_gait", "planar_reduction", "solve_fixed_point"]
+__all__ = ["Gait", "GaitNotFound", "continue_gait", "find_gait", "planar_gaits", "planar_reduction",
+           "solve_fixed_point"]
 
 # Newton on the fixed point: residual tolerance (max abs over the state, rad and rad/s scaled by
 # sqrt(l/g)) and iteration cap.
@@ -250,6 +252,49 @@ def _planar_starts(params: Params):
             yield z
 
 
+def planar_gaits(params: Params, stance_angles: Sequence[float] = (0.05, 0.1, 0.2, 0.3, 0.4),
+                 rate_ratios: Sequence[float] = (0.5, 1.0, 1.5, 2.0),
+                 swing_ratios: Sequence[float] = (-1.0, 0.0, 1.0)) -> list[Gait]:
+    """All distinct gaits of the planar reduction found from a grid of starts (one per branch).
+
+    The start is ``theta_st = -a``, ``theta_sw = a``, ``theta_st_dot = k a sqrt(g/l)``,
+    ``theta_sw_dot = s theta_st_dot`` for every ``a`` in ``stance_angles``, ``k`` in
+    ``rate_ratios`` and ``s`` in ``swing_ratios``. Wider than the simplest walker's asymptotics
+    that :func:`find_gait` tries first (those miss the gaits of walkers with heavy legs).
+
+    Parameters
+    ----------
+    params : Params
+        The walker; its planar reduction (:func:`planar_reduction`) is solved.
+    stance_angles : sequence of float
+        (rad)
+    rate_ratios, swing_ratios : sequence of float
+        Dimensionless.
+
+    Returns
+    -------
+    list of Gait
+        Planar gaits, distinct by step time (relative difference > 1e-6), sorted by step time
+        (short-period branch first). Empty when none is found.
+    """
+    reduced = planar_reduction(params)
+    walker = Walker(reduced, planar=True)
+    rate_unit = 1.0 / reduced.time_scale
+    found: list[Gait] = []
+    for a in stance_angles:
+        for k in rate_ratios:
+            for s in swing_ratios:
+                z = np.zeros(8)
+                z[4], z[5], z[6], z[7] = -a, k * a * rate_unit, a, s * k * a * rate_unit
+                try:
+                    gait = solve_fixed_point(walker, z)
+                except GaitNotFound:
+                    continue
+                if not any(abs(gait.step_time - f.step_time) <= 1e-6 * f.step_time for f in found):
+                    found.append(gait)
+    return sorted(found, key=lambda g: g.step_time)
+
+
 def find_gait(params: Params, z_guess: np.ndarray | None = None, planar: bool | None = None,
               steps_per_time_unit: int = 16) -> Gait:
     """Find the walker's symmetric gait.
@@ -277,23 +322,34 @@ def find_gait(params: Params, z_guess: np.ndarray | None = None, planar: bool | 
     if z_guess is not None:
         return solve_fixed_point(walker, z_guess)
     reduced = planar_reduction(params)
-    base = None
-    reasons = []
     planar_walker = Walker(reduced, planar=True, steps_per_time_unit=steps_per_time_unit)
+    reasons = []
+    tried: list[Gait] = []
+    # First the simplest walker's asymptotics (fast, enough for light legs); then, if no gait
+    # follows from there, every distinct planar gait of a wider grid of starts (heavy legs).
     for z0 in _planar_starts(params):
         try:
-            base = solve_fixed_point(planar_walker, z0)
+            tried.append(solve_fixed_point(planar_walker, z0))
             break
         except GaitNotFound as err:
             reasons.append(str(err))
-    if base is None:
-        raise GaitNotFound(
-            f"no planar gait found from {len(reasons)} starts near the simplest walker's "
-            f"(last: {reasons[-1] if reasons else 'none'})"
-        )
-    if planar:
-        return base
-    return continue_gait(reduced, params, base.fixed_point, steps_per_time_unit)
+    for attempt in (tried, None):
+        bases = attempt if attempt is not None else [
+            g for g in planar_gaits(reduced) if not any(
+                abs(g.step_time - t.step_time) <= 1e-6 * t.step_time for t in tried)]
+        for base in bases:
+            if planar:
+                return base
+            try:
+                return continue_gait(reduced, params, base.fixed_point, steps_per_time_unit)
+            except GaitNotFound as err:
+                reasons.append(f"from the planar gait with step time {base.step_time:.4g} s: {err}")
+    if not reasons:
+        reasons.append("no planar gait from any start")
+    raise GaitNotFound(
+        f"no gait found (planar starts near the simplest walker's and a wider grid; "
+        f"last: {reasons[-1]})"
+    )
 
 
 def continue_gait(start: Params, end: Params, z_start: np.ndarray, steps_per_time_unit: int = 16,

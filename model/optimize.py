@@ -7,10 +7,10 @@ Comput. J. 7:308, 1965) or use finite differences of gait features (``scipy.opti
 Each evaluation solves a fixed point by Newton's method warm-started from the last gait found
 (:func:`toywalk.model.gait.solve_fixed_point`), falling back to natural-parameter continuation
 from it (:func:`toywalk.model.gait.continue_gait`), so that consecutive evaluations stay on one gait
-branch (model.md section 5). A branch is identified by its step time: every result keeps the step
-time of the gait it started from and of the one it ended on, and says whether the search stayed
-on the starting branch by continuity (a jump shows as a large relative change of the step time
-between accepted neighbouring evaluations).
+branch (model.md section 5). Branches are told apart by step time: the evaluator counts accepted
+gaits whose step time differs from the previous one's by more than a set fraction (``jumps``, a
+suspected branch jump), and every result reports that count; compare ``result.gait.step_time``
+with the starting gait's to see where a search ended.
 
 Free parameters are named by their file names (``"com_offset[1]"``, ``"foot_radius"``, ...; see
 :meth:`Params.replace`). Internally they are scaled to [0, 1] between their bounds.
@@ -25,7 +25,7 @@ from collections.abc import Callable, Mapping, Sequence
 import numpy as np
 import scipy.optimize
 
-from .gait import Gait, GaitNotFound, continue_gait, planar_reduction, solve_fixed_point
+from .gait import Gait, GaitNotFound, continue_gait, planar_gaits, solve_fixed_point
 from .parameters import ParameterError, Params
 from .walker import STATE_NAMES, Walker
 
@@ -49,49 +49,6 @@ GAIT_FEATURES = ("stride_time", "stride_length", "lean_amplitude", "steer_amplit
 # gait in :func:`minimise_max_eigenvalue`, plus a term that grows with the violation so that the
 # simplex is pushed back towards the feasible region.
 _PENALTY = 1e3
-
-
-def planar_gaits(params: Params, stance_angles: Sequence[float] = (0.05, 0.1, 0.2, 0.3, 0.4),
-                 rate_ratios: Sequence[float] = (0.5, 1.0, 1.5, 2.0),
-                 swing_ratios: Sequence[float] = (-1.0, 0.0, 1.0)) -> list[Gait]:
-    """All distinct gaits of the planar reduction found from a grid of starts (one per branch).
-
-    The start is ``theta_st = -a``, ``theta_sw = a``, ``theta_st_dot = k a sqrt(g/l)``,
-    ``theta_sw_dot = s theta_st_dot`` for every ``a`` in ``stance_angles``, ``k`` in
-    ``rate_ratios`` and ``s`` in ``swing_ratios``. Wider than :func:`find_gait`'s own starts (which
-    follow the simplest walker's asymptotics and miss the gaits of walkers with heavy legs).
-
-    Parameters
-    ----------
-    params : Params
-        The walker; its planar reduction (:func:`planar_reduction`) is solved.
-    stance_angles : sequence of float
-        (rad)
-    rate_ratios, swing_ratios : sequence of float
-        Dimensionless.
-
-    Returns
-    -------
-    list of Gait
-        Planar gaits, distinct by step time (relative difference > 1e-6), sorted by step time
-        (short-period branch first). Empty when none is found.
-    """
-    reduced = planar_reduction(params)
-    walker = Walker(reduced, planar=True)
-    rate_unit = 1.0 / reduced.time_scale
-    found: list[Gait] = []
-    for a in stance_angles:
-        for k in rate_ratios:
-            for s in swing_ratios:
-                z = np.zeros(8)
-                z[4], z[5], z[6], z[7] = -a, k * a * rate_unit, a, s * k * a * rate_unit
-                try:
-                    gait = solve_fixed_point(walker, z)
-                except GaitNotFound:
-                    continue
-                if not any(abs(gait.step_time - f.step_time) <= 1e-6 * f.step_time for f in found):
-                    found.append(gait)
-    return sorted(found, key=lambda g: g.step_time)
 
 
 def heading_eigenvalue(gait: Gait) -> tuple[complex, float]:
@@ -259,7 +216,7 @@ def minimise_max_eigenvalue(gait: Gait, free_names: Sequence[str],
                             constraint: Callable[[Params, Gait], float] | None = None,
                             objective: Callable[[Gait], float] | None = None,
                             maxiter: int = 300, initial_step: float = 0.1,
-                            progress: bool = False) -> OptimisationResult:
+                            continuation: bool = True, progress: bool = False) -> OptimisationResult:
     """Minimise a gait's step-map max |eigenvalue| over a few parameters (Nelder-Mead).
 
     Parameters
@@ -280,6 +237,9 @@ def minimise_max_eigenvalue(gait: Gait, free_names: Sequence[str],
         Nelder-Mead iterations.
     initial_step : float
         Size of the initial simplex as a fraction of each bound interval.
+    continuation : bool
+        Fall back to continuation from the last gait when warm-started Newton fails (slower, but
+        fewer lost points; see :class:`GaitEvaluator`).
     progress : bool
         Show a tqdm progress bar of the evaluations.
 
@@ -296,7 +256,7 @@ def minimise_max_eigenvalue(gait: Gait, free_names: Sequence[str],
     names = tuple(free_names)
     lo, hi = _check_bounds(names, bounds, gait.params)
     objective = objective or (lambda g: g.max_abs_eigenvalue)
-    evaluator = GaitEvaluator(gait.params, names, gait)
+    evaluator = GaitEvaluator(gait.params, names, gait, continuation=continuation)
     x0 = evaluator.values()
     start_value = float(objective(gait))
     best = {"value": start_value, "gait": gait}
@@ -382,7 +342,7 @@ class FitResult:
 
 def fit_gait_targets(gait: Gait, free_names: Sequence[str], bounds: Mapping[str, tuple[float, float]],
                      targets: Mapping[str, tuple[float, float]], max_nfev: int = 200,
-                     regularisation: float = 0.0) -> FitResult:
+                     regularisation: float = 0.0, continuation: bool = True) -> FitResult:
     """Fit free parameters so that the gait's features match target values (least squares).
 
     Minimises ``sum_k ((f_k(p) - target_k) / scale_k)^2`` (+ ``regularisation * |u - u0|^2`` in the
@@ -404,6 +364,8 @@ def fit_gait_targets(gait: Gait, free_names: Sequence[str], bounds: Mapping[str,
         Function evaluations allowed to the least-squares solver.
     regularisation : float
         Weight of the pull towards the starting parameters (0: none).
+    continuation : bool
+        As in :func:`minimise_max_eigenvalue`.
 
     Returns
     -------
@@ -421,7 +383,7 @@ def fit_gait_targets(gait: Gait, free_names: Sequence[str], bounds: Mapping[str,
         if not scale > 0:
             raise ValueError(f"the scale of target {key!r} must be > 0, got {scale!r}")
     lo, hi = _check_bounds(names, bounds, gait.params)
-    evaluator = GaitEvaluator(gait.params, names, gait)
+    evaluator = GaitEvaluator(gait.params, names, gait, continuation=continuation)
     u0 = (evaluator.values() - lo) / (hi - lo)
     keys = list(targets)
     n_res = len(keys) + (len(names) if regularisation > 0 else 0)
