@@ -186,12 +186,31 @@ def continue_branch(params: Params, name: str, start: float, end: float, max_poi
     bar = tqdm(total=max_points, disable=not progress, desc=f"continuing {name}", unit="pt")
     while len(points) < max_points:
         predicted = y + ds * tangent
+        if (predicted[-1] * scale - end) * direction >= 0:
+            # The predictor passes the end: land on it with a fixed-parameter solve (this also
+            # keeps the parameter inside its valid range when the end is a bound, e.g. w = 0).
+            z = np.zeros(8)
+            z[active] = y[:na]
+            try:
+                final = solve_fixed_point(Walker(params.replace(**{name: end}), planar=planar), z)
+            except GaitNotFound:
+                ds *= 0.5
+                if ds < ds_min:
+                    status, message = "stalled", f"no gait found at the end value {name} = {end:.6g}"
+                    break
+                continue
+            point = _point(final, end)
+            if points[-1].stable != point.stable:
+                events.append(_stability_event(params, name, points[-1], point, planar))
+            points.append(point)
+            status, message = "reached", f"reached {name} = {end:.6g}"
+            break
         yc, ok, its = predicted.copy(), False, 0
         for _ in range(_MAXIT):
             its += 1
             try:
                 f, jac = residual(yc)
-            except StepFailure:
+            except (StepFailure, ParameterError):  # a fall, or a parameter out of its range
                 break
             g = np.concatenate([f, [tangent @ (yc - predicted)]])
             if np.max(np.abs(f)) < _TOL:
@@ -230,16 +249,6 @@ def continue_branch(params: Params, name: str, start: float, end: float, max_poi
         bar.update(1)
         y, tangent = yc, new_tangent
         ds = min(ds_max, ds * (1.5 if its <= 3 else 1.0))
-        # Stop at the end of the range (land on it exactly with a fixed-parameter solve).
-        if (value - end) * direction >= 0:
-            try:
-                final = solve_fixed_point(Walker(params.replace(**{name: end}), planar=planar),
-                                          point.fixed_point)
-                points[-1] = _point(final, end)
-            except GaitNotFound:
-                pass
-            status, message = "reached", f"reached {name} = {end:.6g}"
-            break
         if (value - start) * direction < -1e-12 * scale:
             status, message = "turned back", f"the branch returned below {name} = {start:.6g}"
             break

@@ -71,3 +71,35 @@ def test_cli_continue_writes_table_plot_and_events(tmp_path):
                          capture_output=True, text=True, timeout=600)
     assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "bad.csv").exists()
+
+
+def test_fold_is_found_and_is_a_fold():
+    """compass-3d's gait family in hip width turns back near w = 0.118 m. Check it is a real fold:
+    below the turning value the branch holds two different gaits at the same parameter (one on
+    each side), each confirmed by an independent fixed-parameter Newton solve."""
+    from toywalk.model.gait import solve_fixed_point
+    from toywalk.model.walker import Walker
+
+    params = load_params(DATA / "params" / "compass-3d.toml")
+    branch = continue_branch(params, "hip_width", 0.1, 0.3, max_points=60)
+    folds = [e for e in branch.events if e.kind == "fold"]
+    assert len(folds) == 1
+    w_fold = folds[0].value
+    assert 0.11 < w_fold < 0.125  # measured 0.1177 (docs: toywalk gait --continue)
+    values = np.array([p.value for p in branch.points])
+    turn = int(np.argmax(values))
+    assert 0 < turn < len(values) - 1  # the parameter rises, then falls: the branch turned back
+    w = 0.5 * (values[turn - 1] + w_fold) if values[turn - 1] < w_fold else values[turn - 1]
+    walker = Walker(params.replace(hip_width=w))
+    before = solve_fixed_point(walker, branch.points[turn - 1].fixed_point)
+    after_index = turn + int(np.argmin(np.abs(values[turn:] - w)))
+    after = solve_fixed_point(walker, branch.points[after_index].fixed_point)
+    assert np.max(np.abs(before.fixed_point - after.fixed_point)) > 1e-4
+
+
+def test_continuation_to_a_bound_lands_on_it():
+    """Continuing hip width down to exactly 0 (its lower bound) ends on w = 0, not past it."""
+    params = load_params(DATA / "params" / "stable-toy.toml")
+    branch = continue_branch(params, "hip_width", params.hip_width, 0.0, max_points=60)
+    assert branch.status == "reached"
+    assert branch.points[-1].value == 0.0
