@@ -24,6 +24,11 @@ def register(subparsers) -> None:
     p.add_argument("--markers", default=None, help="marker layout (default: data/markers/default.json)")
     p.add_argument("--out", required=True, help="trajectory file NAME.csv")
     p.add_argument("--overlay", default=None, help="write a video with detections drawn (.mp4)")
+    p.add_argument("--hip-width", type=float, default=None,
+                   help="distance between the legs' hip points along the axle (m); default: from "
+                        "--params, else estimated from the video")
+    p.add_argument("--params", default=None,
+                   help="parameter TOML file of the walker filmed (only its hip_width is used)")
     p.add_argument("--full-search", action="store_true",
                    help="search the whole frame every time instead of around predicted markers (slower)")
     p.set_defaults(func=cmd_track)
@@ -67,12 +72,23 @@ def cmd_track(args) -> int:
         raise CommandError(f"--overlay must name a .mp4 file in an existing folder, got {overlay}")
     if not video.is_file():
         raise CommandError(f"video file not found: {video}")
+    hip_width = args.hip_width
+    if hip_width is not None and not (math.isfinite(hip_width) and hip_width >= 0):
+        raise CommandError(f"--hip-width must be a length >= 0 (m), got {hip_width}")
+    if hip_width is None and args.params is not None:
+        from toywalk.model.parameters import load_params
+
+        try:
+            hip_width = float(load_params(args.params).hip_width)
+        except (OSError, ValueError) as err:
+            raise CommandError(f"cannot read --params {args.params}: {str(err).splitlines()[0]}") from err
     camera_path = _default(args.camera, "camera", "default.json")
     markers_path = _default(args.markers, "markers", "default.json")
     try:
         camera = load_camera(camera_path)
         layout = load_layout(markers_path)
-        result, source = track_video(video, camera, layout, overlay=overlay, roi=not args.full_search)
+        result, source = track_video(video, camera, layout, overlay=overlay, roi=not args.full_search,
+                                     hip_width=hip_width)
     except (CameraError, LayoutError, TrackError) as err:
         raise CommandError(str(err)) from err
     n = len(result.time)
@@ -92,8 +108,14 @@ def cmd_track(args) -> int:
         "frames_with_leg": result.frames_with,
         "gaps": gaps,
         "search": result.counts,
-        "sd_method": "PnP covariance sigma^2 (J^T J)^-1, pixel sigma pooled over the video from "
-                     "reprojection residuals, propagated to the angles; ramp-pose error not included",
+        "pose_method": "both legs fitted jointly to all visible leg-marker corners, sharing the hip "
+                       "axis (steer, lean) with hip points hip_width apart (tracking/joint.py); "
+                       "frames whose angles jump away from both neighbouring stretches are gaps",
+        "hip_width": {"value_m": result.hip_width, "source": result.hip_width_source},
+        "sd_method": "joint-fit covariance sigma^2 (J^T J)^-1, pixel sigma pooled over the video from "
+                     "reprojection residuals, inflated by (rms / expected rms)^2 where a frame fits "
+                     "worse than the noise explains, propagated to the angles; ramp-pose error not "
+                     "included",
         "events_method": "kink (rate jump) in both leg pitches, continuous piecewise-quadratic "
                          "breakpoint fit; the leading leg strikes; contact position unknown",
         "software": _version(),

@@ -11,7 +11,13 @@ section 4). It is found where the leg pitches have a kink, without the walker's 
    pitches around the candidate (least squares for each ``tau`` on a fine grid, then a parabola
    through the best three): ``tau`` is the heel-strike time, between frames;
 3. the striking foot is the leading one, the leg with the smaller pitch at ``tau``
-   (``theta > 0``: hip ahead of the foot); it becomes the stance foot.
+   (``theta > 0``: hip ahead of the foot); it becomes the stance foot;
+4. consistency: of two strikes that cannot both be real (closer than half the median step, or
+   the same foot twice in a row within 1.5 steps), the weaker kink is dropped.
+
+Before all this, isolated wrong samples (a pose that neither the samples before nor those after
+explain, :func:`isolated_outliers`) are treated as gaps, and kinks are also sought across short
+gaps (``max_gap`` frames), timed from the samples either side.
 
 Scuffing while the legs pass each other has no collision and so no kink. This is change-point
 estimation by segmented regression (Muggeo 2003, Stat. Med. 22:3055, doi:10.1002/sim.1545).
@@ -23,7 +29,7 @@ import dataclasses
 
 import numpy as np
 
-__all__ = ["HeelStrike", "heel_strikes", "stance_from_events"]
+__all__ = ["HeelStrike", "heel_strikes", "isolated_outliers", "noise_sd", "stance_from_events"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -64,7 +70,7 @@ def _side_rate(t, y, t0):
     return coef[1], inv[1, 1]
 
 
-def _noise_sd(y) -> float:
+def noise_sd(y) -> float:
     """Robust SD of a signal's white noise from its fourth differences (MAD), NaN-aware.
 
     Fourth differences of a smooth signal sampled densely are small; of white noise of SD sigma
@@ -75,6 +81,64 @@ def _noise_sd(y) -> float:
     if len(d4) < 5:
         return np.nan
     return float(1.4826 * np.median(np.abs(d4 - np.median(d4))) / np.sqrt(70.0))
+
+
+def _extrapolation_factor(count: int) -> float:
+    """SD of a quadratic fitted to ``count`` unit-spaced, unit-noise samples, extrapolated one step."""
+    x = np.arange(-count, 0, dtype=float)
+    a = np.vander(x, 3, increasing=True)
+    inv = np.linalg.inv(a.T @ a)
+    return float(np.sqrt(inv[0, 0]))
+
+
+def isolated_outliers(y, sd: float, *, count: int = 5, threshold: float = 6.0,
+                      floor: float = np.radians(1.0)) -> np.ndarray:
+    """Samples (bool mask, shape (n,)) that neither side's neighbours explain.
+
+    Each sample is compared with quadratics fitted to the ``count`` valid samples before it and to
+    the ``count`` after it, each extrapolated to it. A kink (heel strike) bends the signal, but it
+    stays continuous, so at least one side predicts every sample near it; a wrong pose (a mirrored
+    single-marker fit, a blurred marker) is an isolated jump that both sides miss. Flagged if both
+    misses exceed ``threshold`` times the extrapolation's SD for white noise ``sd`` (and
+    ``floor``, rad: the curvature of the signal over a frame or two); at the ends of the series
+    or of a gap, one side's miss decides. Uniform sampling assumed.
+    """
+    y = np.asarray(y, float)
+    ok = np.isfinite(y)
+    n = len(y)
+    limit = max(threshold * sd * _extrapolation_factor(count), floor)
+    out = np.zeros(n, dtype=bool)
+    if n < 2 * count + 1:
+        return out
+    # where the count samples on a side are all valid, the extrapolation is a fixed linear filter
+    x = np.arange(-count, 0, dtype=float)
+    a = np.vander(x, 3, increasing=True)
+    weights = (np.linalg.inv(a.T @ a) @ a.T)[0]  # value at 0 from samples at -count..-1
+    filled = np.where(ok, y, 0.0)
+    valid = np.concatenate([[0], np.cumsum(ok)])
+    from_left = np.full(n, np.inf)
+    from_right = np.full(n, np.inf)
+    idx = np.arange(count, n)
+    full = valid[idx] - valid[idx - count] == count
+    pred = np.lib.stride_tricks.sliding_window_view(filled, count)[: n - count] @ weights
+    from_left[idx[full]] = np.abs(pred[full] - y[idx[full]])
+    idx = np.arange(0, n - count)
+    full = valid[idx + count + 1] - valid[idx + 1] == count
+    pred = np.lib.stride_tricks.sliding_window_view(filled, count)[1:] @ weights[::-1]
+    from_right[idx[full]] = np.abs(pred[full] - y[idx[full]])
+    # near a gap: fit the nearest valid samples on that side (up to 2 count away)
+    for i in np.flatnonzero(ok & ~(np.isfinite(from_left) & np.isfinite(from_right))):
+        for step, miss in ((-1, from_left), (1, from_right)):
+            if np.isfinite(miss[i]):
+                continue
+            sel = _window(ok, i + step, -1 if step < 0 else n, step, count)
+            if len(sel) < count:
+                continue  # an end or a long gap: no evidence from this side
+            coef = np.polyfit(np.array(sel, float) - i, y[sel], 2)
+            miss[i] = abs(coef[-1] - y[i])
+    nearest = np.minimum(from_left, from_right)  # inf: no side had enough samples
+    out = ok & np.isfinite(nearest) & (nearest > limit)
+    return out
 
 
 def _window(ok, start, stop, step, count):
@@ -127,7 +191,8 @@ def _refine(t, pl, pr, ok, k, half_window, span):
 
 def heel_strikes(time, pitch_left, pitch_right, *, half_window: int = 5, min_z: float = 5.0,
                  min_jump_fraction: float = 0.3,
-                 min_spread: float = np.radians(3.0)) -> list[HeelStrike]:
+                 min_spread: float = np.radians(3.0),
+                 reject_outliers: bool = True, max_gap: int = 3) -> list[HeelStrike]:
     """Heel strikes in pitch series (rad) sampled at ``time`` (s), shape (n,) each; NaN = gap.
 
     Parameters
@@ -143,27 +208,40 @@ def heel_strikes(time, pitch_left, pitch_right, *, half_window: int = 5, min_z: 
     min_spread : float
         Minimum |pitch_left - pitch_right| (rad) at a heel strike: the legs are apart (rules out
         the legs passing each other).
+    reject_outliers : bool
+        Treat isolated wrong samples (:func:`isolated_outliers`) as gaps first.
+    max_gap : int
+        Longest run of missing samples (frames) across which a strike is still looked for and timed
+        from the samples either side.
     """
     t = np.asarray(time, float)
     pl, pr = np.asarray(pitch_left, float), np.asarray(pitch_right, float)
     if not (t.shape == pl.shape == pr.shape) or t.ndim != 1:
         raise ValueError(f"time and pitches must share shape (n,), got {t.shape}, {pl.shape}, {pr.shape}")
     ok = np.isfinite(pl) & np.isfinite(pr) & np.isfinite(t)
-    sd = np.nanmax([_noise_sd(pl), _noise_sd(pr)]) if ok.sum() > 10 else np.nan
+    sd = np.nanmax([noise_sd(pl), noise_sd(pr)]) if ok.sum() > 10 else np.nan
     if not np.isfinite(sd):
         return []
     sd = max(sd, 1e-5)  # rad: a floor for noise-free (synthetic) signals
+    if reject_outliers:
+        bad = isolated_outliers(pl, sd) | isolated_outliers(pr, sd)
+        if bad.any():
+            pl, pr = pl.copy(), pr.copy()
+            pl[bad] = np.nan
+            pr[bad] = np.nan
+            ok &= ~bad
     n = len(t)
     z = np.zeros(n)
     jumps = np.zeros((n, 2))
-    for k in range(n - 1):
-        if not (ok[k] and ok[k + 1]):
+    valid = np.flatnonzero(ok)
+    for k, k_next in zip(valid[:-1], valid[1:], strict=True):
+        if k_next - k > max_gap + 1:  # a strike inside a longer gap is not timed
             continue
         before = _window(ok, k, -1, -1, half_window)
-        after = _window(ok, k + 1, n, 1, half_window)
+        after = _window(ok, k_next, n, 1, half_window)
         if len(before) < 3 or len(after) < 3:
             continue
-        t0 = 0.5 * (t[k] + t[k + 1])
+        t0 = 0.5 * (t[k] + t[k_next])
         zz = 0.0
         for j, y in enumerate((pl, pr)):
             rb, vb = _side_rate(t[before], y[before], t0)
@@ -199,13 +277,36 @@ def heel_strikes(time, pitch_left, pitch_right, *, half_window: int = 5, min_z: 
         if jump_size < min_jump_fraction * reference:
             continue
         i0 = int(np.clip(np.searchsorted(t, tau) - 1, 0, n - 2))
-        w = (tau - t[i0]) / (t[i0 + 1] - t[i0])
-        spread = (1 - w) * (pl[i0] - pr[i0]) + w * (pl[i0 + 1] - pr[i0 + 1])
+        spread = float(np.interp(tau, t[ok], (pl - pr)[ok]))  # across a short gap too
         if not abs(spread) >= min_spread:
             continue
         foot = "R" if spread > 0 else "L"  # the leading leg has the smaller pitch
         jump = rate_jumps[1] if foot == "R" else rate_jumps[0]
         events.append(HeelStrike(time=tau, foot=foot, index=i0, rate_jump=float(jump), z=float(z[k])))
+    return _alternating(events)
+
+
+def _alternating(events: list) -> list:
+    """Drop the weaker of two strikes that cannot both be real.
+
+    Steps of one gait last about alike and the feet alternate: two strikes less than half the
+    median step apart, or by the same foot less than 1.5 median steps apart (no strike of the
+    other foot between), are one strike and a noise kink; the one with the smaller kink strength
+    ``z`` goes.
+    """
+    events = sorted(events, key=lambda e: e.time)
+    while len(events) >= 3:
+        step = float(np.median(np.diff([e.time for e in events])))
+        worst = None
+        for a, b in zip(events[:-1], events[1:], strict=True):
+            gap = b.time - a.time
+            if gap < 0.5 * step or (a.foot == b.foot and gap < 1.5 * step):
+                weaker = a if a.z < b.z else b
+                if worst is None or weaker.z < worst.z:
+                    worst = weaker
+        if worst is None:
+            break
+        events.remove(worst)
     return events
 
 

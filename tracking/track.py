@@ -19,7 +19,8 @@ After the last frame (:meth:`Tracker.finish`):
    leg's hip axis, the other pitch a gap); standard deviations propagate
    ``sigma^2 (J^T J)^-1``, with the pixel noise ``sigma`` pooled over the video from the
    reprojection residuals, through the angle functions (finite differences);
-5. heel strikes and stance (:mod:`toywalk.tracking.events`) from the raw pitches;
+5. frames whose angles jump away from both neighbouring stretches (a mirrored single-marker pose)
+   become gaps; heel strikes and stance (:mod:`toywalk.tracking.events`) from the raw pitches;
 6. a smoothed copy of the signals (Savitzky-Golay, Savitzky & Golay 1964, Anal. Chem. 36:1627,
    doi:10.1021/ac60214a047) over stretches without gaps or heel strikes (the rates jump there).
 
@@ -42,14 +43,16 @@ from ..model.kinematics import angles_from_rotations, rotation
 from ..model.trajectory import SIGNALS, TrajectoryTable
 from .camera import Camera
 from .detect import MarkerDetector, merge_regions
-from .events import heel_strikes, stance_from_events
+from .events import heel_strikes, isolated_outliers, noise_sd, stance_from_events
+from .joint import FEET, WalkerPose, fit_walker, rot_y, walker_from_legs
 from .markers import MarkerLayout, body_points
-from .pose import estimate_pose
+from .pose import PoseEstimate, estimate_pose
 
 __all__ = ["FrameSource", "TrackError", "TrackResult", "Tracker", "angles_with_sd", "open_video",
-           "track_frames", "track_video"]
+           "track_frames", "track_video", "walker_angles", "walker_angles_with_sd"]
 
 LEGS = {"left_leg": "L", "right_leg": "R"}
+_WIDTH_SAMPLES = 25  # frames whose joint fits estimate the hip width (when not given)
 
 
 class TrackError(ValueError):
@@ -158,10 +161,16 @@ class Tracker:
     outlier_rms : float
         A body's fit with a larger RMS reprojection error (pixels) is retried without each of its
         markers in turn.
+    hip_width : float, optional
+        Distance between the legs' hip points along the axle (m; the parameter file's
+        ``hip_width``). None estimates it as the median of the joint fits with the width free in
+        the first 25 frames in which both legs show two markers or more; :meth:`finish` refits
+        the frames fitted with another width.
     """
 
     def __init__(self, camera: Camera, layout: MarkerLayout, *, roi: bool = True,
-                 max_full_search_interval: int = 16, outlier_rms: float = 0.5):
+                 max_full_search_interval: int = 16, outlier_rms: float = 0.5,
+                 hip_width: float | None = None):
         if not isinstance(camera, Camera):
             raise TypeError(f"camera must be a Camera, got {type(camera).__name__}")
         if not isinstance(layout, MarkerLayout):
@@ -181,6 +190,12 @@ class Tracker:
         self.roi = roi
         self.max_full_search_interval = int(max_full_search_interval)
         self.outlier_rms = float(outlier_rms)
+        if hip_width is not None and not (math.isfinite(float(hip_width)) and float(hip_width) >= 0):
+            raise ValueError(f"hip_width must be a length >= 0 (m) or None, got {hip_width!r}")
+        self.hip_width_given = None if hip_width is None else float(hip_width)
+        self._width_samples: list[float] = []
+        self.walker: list[WalkerPose | None] = []
+        self._observations: list[dict | None] = []
         self.times: list[float] = []
         self.poses: dict[str, list] = {name: [] for name in self.bodies}
         self.detections: list[dict] = []
@@ -223,6 +238,7 @@ class Tracker:
             slack = 0.35 * size + 8.0 + float(np.nanmax(np.abs(motion))) if np.all(np.isfinite(motion)) \
                 else 0.5 * size + 8.0
             regions.append((lo[0] - slack, lo[1] - slack, hi[0] + slack + 1, hi[1] + slack + 1))
+            self._min_side = min(self._min_side, float(np.min(hi - lo)))
         return regions
 
     def _project(self, points, rvec, tvec):
@@ -245,12 +261,14 @@ class Tracker:
         found: dict = {}
         searched_full = False
         regions = []
+        self._min_side = math.inf  # smallest predicted marker extent (pixels), set by _regions
         for name, p in preds.items():
             if p is not None:
                 regions += self._regions(self.bodies[name], p)
         if regions:
             found = self.detector.detect(image, merge_regions(regions, self.camera.width,
-                                                              self.camera.height))
+                                                              self.camera.height),
+                                         min_side=self._min_side)
             self.counts["roi_searches"] += 1
         # bodies predicted but not found in their regions count as lost
         for name, p in preds.items():
@@ -265,6 +283,8 @@ class Tracker:
                 found.setdefault(i, c)
         poses = {}
         for name, body in self.bodies.items():
+            if name in LEGS:
+                continue
             ids = [i for i in body.ids if i in found]
             if not ids:
                 self.poses[name].append(None)
@@ -276,6 +296,22 @@ class Tracker:
                 poses[name] = est
                 body.history.append((frame, t, est.rvec, est.tvec))
                 del body.history[:-2]
+        walker, used = self._fit_walker(found, preds)
+        self.walker.append(walker)
+        self._observations.append(used)
+        for name, foot in LEGS.items():
+            if name not in self.bodies:
+                continue
+            if walker is None or foot not in walker.seen:
+                self.poses[name].append(None)
+                continue
+            rvec, tvec = walker.leg_pose(foot)
+            est = PoseEstimate(rvec=rvec, tvec=tvec, rms=walker.rms, n_points=walker.n_points[foot],
+                               normal=np.full((6, 6), np.nan))  # see self.walker for the covariance
+            self.poses[name].append(est)
+            poses[name] = est
+            self.bodies[name].history.append((frame, t, rvec, tvec))
+            del self.bodies[name].history[:-2]
         if searched_full:
             still_lost = [n for n in lost if n not in poses]
             self._full_interval = (1 if not still_lost
@@ -285,6 +321,112 @@ class Tracker:
         self.counts["frames"] += 1
         self.track_seconds += _time.perf_counter() - start
         return {"markers": found, "poses": poses}
+
+    @property
+    def hip_width(self) -> float:
+        """The hip width in use (m): the given one, else the median of the estimates so far (0 if
+        none yet)."""
+        if self.hip_width_given is not None:
+            return self.hip_width_given
+        # single estimates scatter about a small true width on both sides of 0
+        return max(float(np.median(self._width_samples)), 0.0) if self._width_samples else 0.0
+
+    def _leg_observations(self, found: dict, drop=None) -> dict:
+        obs = {}
+        for name, foot in LEGS.items():
+            body = self.bodies.get(name)
+            if body is None:
+                continue
+            ids = [i for i in body.ids if i in found and i != drop]
+            if ids:
+                obs[foot] = (np.concatenate([body.points[i] for i in ids]),
+                             np.concatenate([found[i] for i in ids]), ids)
+        return obs
+
+    def _fit_walker(self, found: dict, preds: dict):
+        """Joint fit of both legs (:mod:`toywalk.tracking.joint`) to this frame's leg markers.
+
+        Starting points: the constant-velocity prediction of each seen leg; if that fit is poor
+        (RMS above ``outlier_rms``) or there is no prediction, also each seen leg's own PnP pose
+        (IPPE / SQPnP, nearest the prediction) taken as the axle frame. The best fit wins; among
+        fits alike, the one nearest the prediction. A marker that disagrees with the others is
+        dropped when leaving it out makes the fit much better.
+        Returns (WalkerPose or None, the observations used).
+        """
+        obs = self._leg_observations(found)
+        if not obs:
+            return None, None
+        best = self._best_walker(obs, preds)
+        n_markers = sum(len(o[2]) for o in obs.values())
+        if n_markers >= 3 and (best is None or best.rms > self.outlier_rms):
+            trials = []
+            for foot in obs:
+                for i in obs[foot][2]:
+                    sub = self._leg_observations(found, drop=i)
+                    w = self._best_walker(sub, preds)
+                    if w is not None:
+                        trials.append((w, sub))
+            if trials:
+                w, sub = min(trials, key=lambda x: x[0].rms)
+                if best is None or w.rms < 0.5 * best.rms:
+                    self.counts["markers_dropped"] = self.counts.get("markers_dropped", 0) + 1
+                    best, obs = w, sub
+        if best is None:
+            return None, None
+        if "hip_width" in best.names:
+            self._width_samples.append(best.hip_width)
+        return best, {f: o[:2] for f, o in obs.items()}
+
+    def _best_walker(self, obs: dict, preds: dict):
+        width = self.hip_width
+        # the hip width is a constant: estimated in the first frames that show it well, then fixed
+        fit_width = self.hip_width_given is None and len(self._width_samples) < _WIDTH_SAMPLES and \
+            len(obs) == 2 and all(len(o[2]) >= 2 for o in obs.values())
+        data = {f: o[:2] for f, o in obs.items()}
+        predicted = {}
+        for name, foot in LEGS.items():
+            p = preds.get(name)
+            if p is not None:
+                predicted[foot] = (cv2.Rodrigues(np.asarray(p[0], float).reshape(3, 1))[0],
+                                   np.asarray(p[1], float).reshape(3))
+        prefer = max(obs, key=lambda f: len(obs[f][2]))
+        fits = []
+
+        def attempt(legs, ref):
+            if not all(f in legs for f in obs):
+                return
+            axle, pitch, hip = walker_from_legs(legs, width, prefer=ref)
+            w = fit_walker(self.camera, data, (axle, pitch, hip), hip_width=width,
+                           fit_hip_width=fit_width)
+            if w is not None and np.isfinite(w.rms) and (not fit_width or abs(w.hip_width) < 10.0):
+                fits.append(w)
+
+        attempt(predicted, prefer)
+        if fits and fits[0].rms <= self.outlier_rms:
+            return fits[0]
+        own = {}
+        for name, foot in LEGS.items():
+            if foot in obs:
+                guess = preds[name][:2] if preds.get(name) is not None else None
+                est = estimate_pose(self.camera, obs[foot][0], obs[foot][1], guess=guess)
+                if est is not None:
+                    own[foot] = (cv2.Rodrigues(est.rvec.reshape(3, 1))[0], est.tvec)
+        for ref in obs:
+            legs = {**predicted, **own} if ref in own else {}
+            if ref in own:
+                attempt(legs, ref)
+        if not fits:
+            return None
+        best = min(fits, key=lambda w: w.rms)
+        if predicted:
+            alike = [w for w in fits if w.rms <= max(1.5 * best.rms, best.rms + 0.2)]
+
+            def distance(w):
+                return sum(_angle_between(w.rotation(f), predicted[f][0]) for f in w.seen
+                           if f in predicted)
+
+            best = min(alike, key=distance)
+        return best
 
     def _fit_body(self, body: _Body, ids: list, found: dict, guess):
         """Pose from all visible markers; a marker that disagrees with the others (partly hidden,
@@ -330,25 +472,28 @@ class Tracker:
         seen = {name: sum(p is not None for p in self.poses.get(name, [])) for name in LEGS}
         if not any(seen.values()):
             raise TrackError(f"no leg markers found in any of the {n} frames")
-        pixel_sd = {name: _pooled_pixel_sd(self.poses[name]) for name in self.bodies}
+        walker = self._final_walker()
+        pixel_sd = {name: _pooled_pixel_sd(self.poses[name]) for name in self.bodies if name not in LEGS}
+        legs_sd = _pooled_walker_sd(walker)
+        pixel_sd.update({name: legs_sd for name in LEGS if name in self.bodies})
         ramp = self._ramp_poses(n, pixel_sd.get("ramp"))
         raw = {k: np.full(n, np.nan) for k in SIGNALS}
         sd = {k: np.full(n, np.nan) for k in SIGNALS}
         for i in range(n):
             r_ramp = ramp["rotations"][i]
-            if r_ramp is None:
+            if r_ramp is None or walker[i] is None:
                 continue
-            legs = {}
-            for name, foot in LEGS.items():
-                est = self.poses[name][i] if name in self.poses else None
-                if est is not None:
-                    legs[foot] = (est.rvec, est.covariance(pixel_sd[name])[:3, :3])
-            if not legs:
-                continue
-            values, sds = angles_with_sd(r_ramp, legs)
+            values, sds = walker_angles_with_sd(r_ramp, walker[i], legs_sd)
             for k in SIGNALS:
                 raw[k][i], sd[k][i] = values[k], sds[k]
-        events = heel_strikes(time, raw["pitch_left"], raw["pitch_right"])
+        rejected = _inconsistent_frames(raw)
+        for k in SIGNALS:
+            raw[k][rejected] = np.nan
+            sd[k][rejected] = np.nan
+        self.counts["rejected_frames"] = int(rejected.sum())
+        # 7 samples a side: on rendered video (blur, pose noise ~0.1 deg) they time the strikes
+        # better than 5 (benchmarks/TRACKING.md); the kink still has 7 frames on each side at 60 fps
+        events = heel_strikes(time, raw["pitch_left"], raw["pitch_right"], half_window=7)
         stance = stance_from_events(time, events, raw["pitch_left"], raw["pitch_right"])
         smooth, smooth_sd = _smooth(time, raw, sd, events, smoothing_window, smoothing_order)
         return TrackResult(time=time, raw=raw, raw_sd=sd, smooth=smooth, smooth_sd=smooth_sd,
@@ -356,8 +501,25 @@ class Tracker:
                            frames_with=seen, counts=dict(self.counts),
                            smoothing={"method": "Savitzky-Golay", "window": smoothing_window,
                                       "order": smoothing_order},
-                           poses={k: v for k, v in self.poses.items()},
+                           poses={**self.poses, "walker": walker},
+                           hip_width=self.hip_width,
+                           hip_width_source="given" if self.hip_width_given is not None else
+                           f"estimated: median of {len(self._width_samples)} frames' joint fits",
                            track_seconds=self.track_seconds)
+
+    def _final_walker(self) -> list:
+        """The per-frame joint fits, refitted with the final hip width when it was estimated."""
+        if self.hip_width_given is not None or not self._width_samples:
+            return list(self.walker)
+        width = self.hip_width
+        out = []
+        for pose, obs in zip(self.walker, self._observations, strict=True):
+            if pose is None or (abs(pose.hip_width - width) <= 1e-5 and "hip_width" not in pose.names):
+                out.append(pose)  # already fitted with this width (to 0.01 mm)
+                continue
+            refit = fit_walker(self.camera, obs, (pose.axle, pose.pitch, pose.hip), hip_width=width)
+            out.append(refit if refit is not None else pose)
+        return out
 
     def _ramp_poses(self, n: int, ramp_sd) -> dict:
         if self.camera.ramp_pose is not None:
@@ -407,6 +569,30 @@ class Tracker:
                                       f"disagree with one fixed pose by {np.median(per_frame_rms):.2g} px)"}}
 
 
+def _inconsistent_frames(raw: dict) -> np.ndarray:
+    """Frames (bool, shape (n,)) whose angles jump away from both neighbouring stretches.
+
+    A leg seen through one small marker can give a mirrored pose whose residual is as small as
+    the true one's; the angles then jump by degrees for a frame or two, which neither the frames
+    before nor those after explain (:func:`toywalk.tracking.events.isolated_outliers`; a heel
+    strike bends the pitches but keeps them continuous). Such frames become gaps: a missing
+    sample, not a wrong one.
+    """
+    n = len(next(iter(raw.values())))
+    bad = np.zeros(n, dtype=bool)
+    for k in SIGNALS:
+        y = raw[k]
+        sd = noise_sd(y)
+        if np.isfinite(sd) and np.sum(np.isfinite(y)) > 12:
+            bad |= isolated_outliers(y, max(sd, 1e-5))
+    return bad
+
+
+def _angle_between(a: np.ndarray, b: np.ndarray) -> float:
+    """Angle (rad) of the rotation taking ``b`` to ``a`` (both (3, 3))."""
+    return float(np.arccos(np.clip((np.trace(a @ b.T) - 1) / 2, -1.0, 1.0)))
+
+
 def _pooled_pixel_sd(poses) -> float:
     """Pixel noise SD pooled over frames, robustly: the median over frames of each frame's residual
     RMS corrected for the six fitted parameters (``rms * sqrt(2n / (2n - 6))``), scaled so that
@@ -420,6 +606,67 @@ def _pooled_pixel_sd(poses) -> float:
 
     ratio = chi.median(dof) / math.sqrt(dof)  # median of rms/sigma for dof degrees of freedom
     return max(float(np.median(values)) / ratio, 0.02)  # floor: sub-pixel corners are never better
+
+
+def _pooled_walker_sd(poses) -> float:
+    """Pixel noise SD pooled over the joint leg fits, as :func:`_pooled_pixel_sd`."""
+    good = [p for p in poses if p is not None and p.dof > 0]
+    if not good:
+        return 0.5  # pixels: a conservative guess when no frame has redundant points
+    values = [p.rms * math.sqrt((p.dof + len(p.names)) / p.dof) for p in good]
+    dof = float(np.median([p.dof for p in good]))
+    from scipy.stats import chi
+
+    ratio = chi.median(dof) / math.sqrt(dof)
+    return max(float(np.median(values)) / ratio, 0.02)
+
+
+def walker_angles(r_ramp: np.ndarray, pose: WalkerPose) -> np.ndarray:
+    """(lean, steer, pitch_left, pitch_right) (rad) of a joint leg pose; NaN for an unseen leg.
+
+    ``r_ramp`` (3, 3) rotates the ramp frame into the camera frame. The hip axis b2 gives steer
+    and lean (``b2 = Rz(steer) Rx(lean) e_y``, model.md section 1), each leg its pitch about it.
+    """
+    axle = r_ramp.T @ pose.axle
+    b2 = axle[:, 1]
+    lean = math.asin(float(np.clip(b2[2], -1.0, 1.0)))
+    steer = math.atan2(-b2[0], b2[1])
+    base = rotation(steer, lean, 0.0).T @ axle
+    pitches = []
+    for f in FEET:
+        if f in pose.seen:
+            local = base @ rot_y(pose.pitch[f])
+            pitches.append(math.atan2(local[0, 2], local[2, 2]))
+        else:
+            pitches.append(math.nan)
+    return np.array([lean, steer, *pitches])
+
+
+def walker_angles_with_sd(r_ramp: np.ndarray, pose: WalkerPose, pixel_sd: float) -> tuple[dict, dict]:
+    """Angles of a joint leg pose and their SDs (dicts of SIGNALS name -> rad).
+
+    The covariance ``pixel_sd^2 (J^T J)^-1`` of the fit is propagated through
+    :func:`walker_angles` by finite differences. It is inflated by ``(rms / rms_expected)^2`` when
+    the frame's residual exceeds what the pooled pixel noise explains (blur, a bent edge): such
+    a pose is less certain than its Jacobian says.
+    """
+    base = walker_angles(r_ramp, pose)
+    angular = [j for j, name in enumerate(pose.names) if name in ("d1", "d3", "pitch_L", "pitch_R")]
+    h = 1e-7
+    jac = np.zeros((4, len(angular)))
+    for c, j in enumerate(angular):
+        step = np.zeros(len(pose.names))
+        step[j] = h
+        jac[:, c] = (walker_angles(r_ramp, pose.perturbed(step)) - base) / h
+    jac = np.nan_to_num(jac)
+    cov = pose.normal[np.ix_(angular, angular)] * pixel_sd**2
+    if pose.dof > 0:
+        expected = pixel_sd * math.sqrt(pose.dof / (pose.dof + len(pose.names)))
+        cov = cov * max(1.0, (pose.rms / expected) ** 2)
+    sd = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", jac, cov, jac), 0.0))
+    sd[~np.isfinite(base)] = np.nan
+    names = ("lean", "steer", "pitch_left", "pitch_right")
+    return dict(zip(names, base, strict=True)), dict(zip(names, sd, strict=True))
 
 
 def _angles(r_ramp: np.ndarray, rvecs: dict) -> np.ndarray:
@@ -513,6 +760,11 @@ class TrackResult:
         Frames in which each leg's pose was found.
     counts : dict
         Frames, whole-frame and region searches.
+    poses : dict
+        Per frame: ``walker``, the joint leg fits (:class:`~toywalk.tracking.joint.WalkerPose` or
+        None); each leg's pose derived from them; the ramp's own fits.
+    hip_width : float
+        The hip width used (m) and, in ``hip_width_source``, where it came from.
     """
 
     time: np.ndarray
@@ -529,6 +781,8 @@ class TrackResult:
     smoothing: dict
     poses: dict
     track_seconds: float = 0.0
+    hip_width: float = math.nan
+    hip_width_source: str = ""
 
     def table(self, *, smoothed: bool = False, metadata=None) -> TrajectoryTable:
         """The trajectory-file table of the raw (default) or smoothed signals."""
@@ -540,9 +794,11 @@ class TrackResult:
 
 
 def track_frames(frames, camera: Camera, layout: MarkerLayout, *, overlay=None, roi: bool = True,
-                 **finish_options) -> TrackResult:
-    """Track an iterable of ``(time, image)``; ``overlay(image)`` receives each annotated frame."""
-    tracker = Tracker(camera, layout, roi=roi)
+                 hip_width: float | None = None, **finish_options) -> TrackResult:
+    """Track an iterable of ``(time, image)``; ``overlay(image)`` receives each annotated frame.
+
+    ``hip_width`` (m) as in :class:`Tracker` (None: estimated from the video)."""
+    tracker = Tracker(camera, layout, roi=roi, hip_width=hip_width)
     for t, image in frames:
         record = tracker.process(t, image)
         if overlay is not None:
@@ -551,7 +807,8 @@ def track_frames(frames, camera: Camera, layout: MarkerLayout, *, overlay=None, 
 
 
 def track_video(path: str | Path, camera: Camera, layout: MarkerLayout, *, overlay: str | Path | None = None,
-                roi: bool = True, **finish_options) -> tuple[TrackResult, FrameSource]:
+                roi: bool = True, hip_width: float | None = None,
+                **finish_options) -> tuple[TrackResult, FrameSource]:
     """Track a video file; optionally write an overlay video (MPEG-4) to ``overlay``.
 
     Returns the result and the :class:`FrameSource` (frame counts, decode time). The overlay is
@@ -573,7 +830,8 @@ def track_video(path: str | Path, camera: Camera, layout: MarkerLayout, *, overl
             raise TrackError(f"cannot write the overlay video {overlay}")
         sink = writer.write
     try:
-        result = track_frames(source, camera, layout, overlay=sink, roi=roi, **finish_options)
+        result = track_frames(source, camera, layout, overlay=sink, roi=roi, hip_width=hip_width,
+                              **finish_options)
         if writer is not None:
             writer.release()
             writer = None

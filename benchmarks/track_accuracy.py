@@ -1,0 +1,222 @@
+"""Tracker accuracy and speed on rendered videos of known trajectories (benchmarks/TRACKING.md).
+
+Usage::
+
+    TOYWALK_CACHE=/tmp/twcache .venv/bin/python benchmarks/track_accuracy.py [--quick] [--out FILE]
+
+For each walker (``compass-3d`` from data/params, and a toy-sized walker, the test suite's, whose
+gait is unstable but walks the six steps rendered) it simulates a few steps from the gait, renders
+them at 1280x720, 60 fps with the real renderer at noise levels 0-3 and once with frequent
+occluders, tracks each video with the camera and marker files the renderer wrote, and compares
+with the renderer's truth: RMS and max error per signal (deg, over the frames tracked), frames
+left as gaps, heel strikes matched to the true ones (timing error in frames, missed, invented,
+wrong foot). Throughput: a decode-only pass and a tracking pass over the same video, alternated,
+best of three each; the ratio is tracking throughput over decode-only throughput.
+
+Writes ``benchmarks/results/track_accuracy.json`` atomically (temporary file, then rename).
+It takes about 3-4 minutes on one core (rendering dominates).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+TOYWALK = str(Path(sys.executable).with_name("toywalk"))
+SIGNALS = ("lean", "steer", "pitch_left", "pitch_right")
+
+#: The toy-sized walker of tests/tracking/test_track.py (leg 15 cm, torus feet, no hip width).
+TOY_TOML = """\
+leg_length = 0.15
+foot_radius = 0.03
+foot_lateral_radius = 0.005
+hip_width = 0.0
+leg_mass = 0.05
+axle_mass = 0.02
+com_offset = [-0.005, 0.1, -0.11]
+inertia = [3e-4, 1e-4, 3e-4, 0.0, 0.0, 0.0]
+slope = 0.0785
+gravity = 9.81
+
+[effects]
+"""
+
+WALKERS = {"compass-3d": {"steps": 8}, "toy": {"steps": 6}}
+CASES = [("level0", 0, {}), ("level1", 1, {}), ("level2", 2, {}), ("level3", 3, {}),
+         ("level1+occlusion", 1, {"occlusion": 0.25})]
+
+
+def _simulate(params_path: Path, steps: int, out: Path) -> None:
+    r = subprocess.run([TOYWALK, "simulate", "--params", str(params_path), "--steps", str(steps),
+                        "--out", str(out)], capture_output=True, text=True, timeout=600)
+    if r.returncode != 0:
+        raise RuntimeError(f"simulate failed: {r.stderr.strip()}")
+
+
+def _render(traj: Path, params_path: Path, level: int, overrides: dict, out: Path, seed: int) -> float:
+    from toywalk.model.parameters import load_params
+    from toywalk.model.trajectory import read_trajectory
+    from toywalk.tracking.markers import default_layout
+    from toywalk.tracking.render import RenderOptions, render
+    from toywalk.tracking.scene import default_camera_for
+
+    params = load_params(params_path)
+    start = time.perf_counter()
+    render(read_trajectory(traj), params, default_camera_for(params), default_layout(params),
+           RenderOptions.preset(level, **overrides), out, rng=seed, source={"trajectory": str(traj)})
+    return time.perf_counter() - start
+
+
+def _match(truth_events, events, step: float, dt: float) -> dict:
+    """Pair each true heel strike with the nearest measured one within half a step."""
+    measured = list(events)
+    errors, wrong_foot, missed = [], 0, 0
+    for ev in truth_events:
+        if not measured:
+            missed += 1
+            continue
+        j = int(np.argmin([abs(m.time - ev["time"]) for m in measured]))
+        if abs(measured[j].time - ev["time"]) > 0.5 * step:
+            missed += 1
+            continue
+        m = measured.pop(j)
+        errors.append((m.time - ev["time"]) / dt)
+        wrong_foot += m.foot != ev["foot"]
+    return {"true": len(truth_events), "found": len(events), "missed": missed, "invented": len(measured),
+            "wrong_foot": wrong_foot, "timing_rms_frames": float(np.sqrt(np.mean(np.square(errors))))
+            if errors else None, "timing_max_frames": float(np.max(np.abs(errors))) if errors else None}
+
+
+def _track_case(video: Path) -> dict:
+    from toywalk.model.trajectory import read_trajectory
+    from toywalk.tracking.camera import load_camera
+    from toywalk.tracking.markers import load_layout
+    from toywalk.tracking.track import track_video
+
+    stem = video.with_suffix("")
+    camera = load_camera(f"{stem}.camera.json")
+    layout = load_layout(f"{stem}.markers.json")
+    start = time.perf_counter()
+    result, source = track_video(video, camera, layout)
+    wall = time.perf_counter() - start
+    truth = read_trajectory(f"{stem}.truth.csv")
+    if len(truth.time) != len(result.time) or not np.allclose(truth.time, result.time, atol=1e-4):
+        raise RuntimeError(f"{video}: frame times differ from the truth's")
+    out = {"frames": len(result.time), "signals": {}}
+    for k in SIGNALS:
+        err = np.degrees(result.raw[k] - truth.signals[k])
+        ok = np.isfinite(err)
+        z = err[ok] / np.degrees(result.raw_sd[k][ok])
+        out["signals"][k] = {"rms_deg": float(np.sqrt(np.mean(err[ok] ** 2))) if ok.any() else None,
+                             "max_deg": float(np.max(np.abs(err[ok]))) if ok.any() else None,
+                             "gaps": int((~ok).sum()),
+                             "z_rms": float(np.sqrt(np.mean(z**2))) if ok.any() else None}
+    times = [e["time"] for e in truth.events]
+    step = float(np.median(np.diff(times))) if len(times) > 1 else 0.4
+    out["heel_strikes"] = _match(truth.events, result.events, step, float(np.median(np.diff(truth.time))))
+    out["hip_width_m"] = result.hip_width
+    out["counts"] = result.counts
+    out["track_ms_per_frame"] = 1e3 * wall / len(result.time)
+    return out
+
+
+def _throughput(video: Path, repeats: int = 3) -> dict:
+    """Decode-only and tracking passes over one video, alternated; best of ``repeats`` each."""
+    from toywalk.tracking.camera import load_camera
+    from toywalk.tracking.markers import load_layout
+    from toywalk.tracking.track import open_video, track_video
+
+    stem = video.with_suffix("")
+    camera = load_camera(f"{stem}.camera.json")
+    layout = load_layout(f"{stem}.markers.json")
+    decode, track = [], []
+    n = 0
+    for _ in range(repeats):
+        start = time.perf_counter()
+        n = sum(1 for _ in open_video(video))
+        decode.append(time.perf_counter() - start)
+        start = time.perf_counter()
+        track_video(video, camera, layout)
+        track.append(time.perf_counter() - start)
+    return {"video": video.name, "frames": n, "decode_ms_per_frame": 1e3 * min(decode) / n,
+            "track_ms_per_frame": 1e3 * min(track) / n, "ratio": min(decode) / min(track),
+            "method": f"best of {repeats} alternated passes each; ratio = tracking throughput / "
+                      "decode-only throughput (decode time / tracking time, tracking includes decode)"}
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", default=str(ROOT / "benchmarks" / "results" / "track_accuracy.json"))
+    parser.add_argument("--quick", action="store_true", help="compass-3d at level 1 only")
+    parser.add_argument("--keep", default=None, help="keep the rendered videos in this folder")
+    args = parser.parse_args(argv)
+    os.environ.setdefault("TOYWALK_CACHE", "/tmp/twcache")
+    started = time.perf_counter()
+    report = {"about": "tracker accuracy on rendered videos (1280x720, 60 fps) against the renderer's "
+                       "truth; errors in degrees over tracked frames, heel-strike timing in frames",
+              "load_average_start": os.getloadavg(), "walkers": {}, "throughput": None}
+    with tempfile.TemporaryDirectory(prefix="track_accuracy_") as tmp:
+        folder = Path(args.keep) if args.keep else Path(tmp)
+        folder.mkdir(parents=True, exist_ok=True)
+        (folder / "toy.toml").write_text(TOY_TOML)
+        param_files = {"compass-3d": ROOT / "data" / "params" / "compass-3d.toml", "toy": folder / "toy.toml"}
+        walkers = {"compass-3d": WALKERS["compass-3d"]} if args.quick else WALKERS
+        cases = [c for c in CASES if c[0] == "level1"] if args.quick else CASES
+        for name, spec in walkers.items():
+            traj = folder / f"{name}.walk.csv"
+            _simulate(param_files[name], spec["steps"], traj)
+            report["walkers"][name] = {"params": str(param_files[name].relative_to(ROOT))
+                                       if name != "toy" else "TOY_TOML in this script",
+                                       "steps": spec["steps"], "cases": {}}
+            for seed, (case, level, overrides) in enumerate(cases, start=1):
+                video = folder / f"{name}.{case}.mp4"
+                render_s = _render(traj, param_files[name], level, overrides, video, seed)
+                res = _track_case(video)
+                res.update({"noise_level": level, "overrides": overrides, "seed": seed,
+                            "render_s": render_s})
+                report["walkers"][name]["cases"][case] = res
+                s = res["signals"]
+                hs = res["heel_strikes"]
+                print(f"{name:10s} {case:17s} " + " ".join(
+                    f"{k} {s[k]['rms_deg']:.3f}" if s[k]["rms_deg"] is not None else f"{k} -"
+                    for k in SIGNALS) + f" gaps {s['pitch_left']['gaps']}/{res['frames']}"
+                      f" strikes {hs['found']}/{hs['true']} missed {hs['missed']} invented "
+                      f"{hs['invented']} foot {hs['wrong_foot']} rms {hs['timing_rms_frames']}", flush=True)
+        report["throughput"] = _throughput(folder / "compass-3d.level1.mp4")
+        print(f"throughput: decode {report['throughput']['decode_ms_per_frame']:.2f} ms/frame, track "
+              f"{report['throughput']['track_ms_per_frame']:.2f} ms/frame, ratio "
+              f"{report['throughput']['ratio']:.2f}")
+    report["load_average_end"] = os.getloadavg()
+    report["run_seconds"] = time.perf_counter() - started
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp_out = out.with_name(f".{out.name}.tmp")
+    try:
+        tmp_out.write_text(json.dumps(report, indent=2, default=_jsonable) + "\n")
+        os.replace(tmp_out, out)
+    finally:
+        tmp_out.unlink(missing_ok=True)
+    print(f"wrote {out} in {report['run_seconds']:.0f} s")
+    return 0
+
+
+def _jsonable(value):
+    if isinstance(value, (np.floating, np.integer)):
+        return value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return str(value)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

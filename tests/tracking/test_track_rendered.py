@@ -1,0 +1,88 @@
+"""The tracker on a short clip made by the real renderer (noise level 1: sensor noise, motion
+blur, flicker, MPEG-4), against the renderer's truth: the targets of issue 4.
+
+The walker is the toy-sized one of test_track.py (leg 15 cm, its flags about 50 pixels wide at
+1280x720), the case where tracking leg by leg failed: near heel strike the swing leg moves fast,
+its blurred markers are often not decoded, and a leg seen through one small marker gave a wrong,
+sometimes mirrored pose (pitch errors up to 14 degrees, RMS 0.9-1.7 degrees, strikes missed or
+given to the wrong foot). One second (60 frames) holds two heel strikes.
+"""
+
+import subprocess
+
+import numpy as np
+import pytest
+from toywalk.model.trajectory import read_trajectory
+from toywalk.tracking.camera import load_camera
+from toywalk.tracking.markers import load_layout
+from toywalk.tracking.track import track_video
+
+from .synthetic import TOYWALK
+
+TOY = """\
+leg_length = 0.15
+foot_radius = 0.03
+foot_lateral_radius = 0.005
+hip_width = 0.0
+leg_mass = 0.05
+axle_mass = 0.02
+com_offset = [-0.005, 0.1, -0.11]
+inertia = [3e-4, 1e-4, 3e-4, 0.0, 0.0, 0.0]
+slope = 0.0785
+gravity = 9.81
+
+[effects]
+"""
+SIGNALS = ("lean", "steer", "pitch_left", "pitch_right")
+
+
+def _run(*args):
+    r = subprocess.run([TOYWALK, *map(str, args)], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    return r
+
+
+@pytest.fixture(scope="module")
+def clip(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("rendered")
+    (folder / "toy.toml").write_text(TOY)
+    _run("simulate", "--params", folder / "toy.toml", "--steps", "3", "--out", folder / "walk.csv")
+    _run("render", folder / "walk.csv", "--params", folder / "toy.toml", "--seed", "1", "--duration", "1.0",
+         "--out", folder / "v.mp4")
+    camera = load_camera(folder / "v.camera.json")
+    layout = load_layout(folder / "v.markers.json")
+    result, _ = track_video(folder / "v.mp4", camera, layout)
+    truth = read_trajectory(folder / "v.truth.csv")
+    return result, truth
+
+
+@pytest.mark.slow
+def test_angles_meet_the_targets(clip):
+    result, truth = clip
+    np.testing.assert_allclose(result.time, truth.time, atol=1e-4)  # the container's timestamps
+    for name in SIGNALS:
+        err = np.degrees(result.raw[name] - truth.signals[name])
+        ok = np.isfinite(err)
+        # Frames whose pose jumps away from both neighbours become gaps, not wrong values; the
+        # renderer hides no marker at level 1, so few may (measured: 4 of 60 frames, all within
+        # two frames of a heel strike).
+        assert (~ok).sum() <= 6, name
+        rms = np.sqrt(np.mean(err[ok] ** 2))
+        # issue 4: lean and pitch RMS <= 0.3 deg, steer <= 0.5 deg (measured 0.06-0.15)
+        assert rms <= (0.5 if name == "steer" else 0.3), (name, rms)
+        # the stated SDs are honest: errors over SD have an RMS of order one (measured 0.6-0.9)
+        z = err[ok] / np.degrees(result.raw_sd[name][ok])
+        assert 0.3 < np.sqrt(np.mean(z**2)) < 3.0, name
+
+
+@pytest.mark.slow
+def test_heel_strikes_found_timed_and_footed(clip):
+    result, truth = clip
+    dt = float(np.median(np.diff(truth.time)))
+    true = [e for e in truth.events if truth.time[0] < e["time"] < truth.time[-1]]
+    assert len(true) == 2  # the clip is chosen to hold two
+    # none missed, none invented, each by the right foot
+    assert [e.foot for e in result.events] == [e["foot"] for e in true]
+    errors = [(e.time - s["time"]) / dt for e, s in zip(result.events, true, strict=True)]
+    # issue 4: timing RMS <= a quarter of a frame interval (measured 0.09 and 0.01 frames)
+    assert np.sqrt(np.mean(np.square(errors))) <= 0.25, errors
