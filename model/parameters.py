@@ -17,6 +17,8 @@ from typing import Any
 
 import numpy as np
 
+from .files import atomic_write_text
+
 __all__ = [
     "PARAMETER_NAMES",
     "ParameterError",
@@ -365,10 +367,4 @@ def save_params(params: Params, path: str | Path, header: str = "") -> None:
     lines.append("[effects]")
     for key, value in sorted(params.effects.items()):
         lines.append(f"{key} = {value!r}")
-    _atomic_write(Path(path), "\n".join(lines) + "\n")
-
-
-def _atomic_write(path: Path, text: str) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(text)
-    tmp.replace(path)
+    atomic_write_text(path, "\n".join(lines) + "\n")

@@ -11,12 +11,11 @@ corners, or an RMS reprojection error above ``max_rms`` pixels.
 from __future__ import annotations
 
 import dataclasses
-import json
-import os
 from pathlib import Path
 
 import cv2
 import numpy as np
+from toywalk.model.files import atomic_write_json
 
 from .camera import Camera
 from .detect import dictionary_by_name
@@ -206,10 +205,4 @@ def calibrate(images, board: BoardSpec = DEFAULT_BOARD, *, max_rms: float = 1.0,
 
 def save_calibration(result: CalibrationResult, path: str | Path) -> None:
     """Write the camera file with the calibration record (board, errors, views) atomically."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp")
-    try:
-        tmp.write_text(json.dumps(result.to_dict(), indent=2) + "\n")
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
+    atomic_write_json(path, result.to_dict())

@@ -18,11 +18,11 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import os
 from pathlib import Path
 
 import cv2
 import numpy as np
+from toywalk.model.files import atomic_write_json
 
 __all__ = [
     "Camera",
@@ -136,13 +136,7 @@ def load_camera(path: str | Path) -> Camera:
 
 def save_camera(camera: Camera, path: str | Path) -> None:
     """Write a camera JSON file atomically."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp")
-    try:
-        tmp.write_text(json.dumps(camera.to_dict(), indent=2) + "\n")
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
+    atomic_write_json(path, camera.to_dict())
 
 
 def default_camera(width: int = 1280, height: int = 720, horizontal_fov_deg: float = 40.0,

@@ -28,11 +28,11 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import os
 from pathlib import Path
 
 import cv2
 import numpy as np
+from toywalk.model.files import atomic_write_json
 
 __all__ = [
     "BODIES",
@@ -231,13 +231,7 @@ def load_layout(path: str | Path) -> MarkerLayout:
 
 def save_layout(layout: MarkerLayout, path: str | Path) -> None:
     """Write a marker layout JSON file atomically (temporary file in the same folder, renamed)."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp")
-    try:
-        tmp.write_text(json.dumps(layout.to_dict(), indent=2) + "\n")
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
+    atomic_write_json(path, layout.to_dict())
 
 
 def marker_pose_matrix(marker: Marker) -> np.ndarray:
