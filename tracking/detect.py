@@ -17,7 +17,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-__all__ = ["MarkerDetector", "Region", "dictionary_by_name", "merge_regions", "refine_corners"]
+__all__ = ["MarkerDetector", "Region", "dictionary_by_name", "marker_matches", "merge_regions",
+           "refine_corners"]
 
 #: A region of interest ``(x0, y0, x1, y1)``: columns x0..x1-1, rows y0..y1-1 (pixels).
 Region = tuple[int, int, int, int]
@@ -77,6 +78,19 @@ def refine_corners(gray: np.ndarray, corners: np.ndarray, camera=None, *, sample
     samples : int
         Points measured along each edge.
     """
+    return _refine(gray, corners, camera, samples, iterations)[0]
+
+
+def _refine(gray, corners, camera, samples: int, iterations: int, *,
+            coarse: bool = False) -> tuple[np.ndarray, bool]:
+    """:func:`refine_corners`, and whether every edge could be measured (else the rough corners).
+
+    ``coarse`` is for rough corners pixels off (a predicted quad): each edge is sought over a
+    wider band (0.16 of the side, at most 8 px), half-way between the median darkest and lightest
+    samples of that edge's profiles, at the outermost dark-to-light crossing (so bits inside the
+    border do not capture it). It converges from farther but is biased by blur; finish with the
+    default mode, which is unbiased once centred.
+    """
     from .camera import undistort_pixels
 
     c0 = np.asarray(corners, float).reshape(4, 2)
@@ -85,7 +99,8 @@ def refine_corners(gray: np.ndarray, corners: np.ndarray, camera=None, *, sample
     for _ in range(iterations):
         a, b = c, np.roll(c, -1, axis=0)  # edge k runs from corner k to corner k + 1
         side = float(np.mean(np.linalg.norm(b - a, axis=1)))
-        reach = max(1.5, min(4.0, 0.12 * side))  # px: about the black border cell, at most
+        reach = max(1.5, min(8.0 if coarse else 4.0, (0.16 if coarse else 0.12) * side))  # px: about
+        # the black border cell, at most
         steps = np.linspace(-reach, reach, int(4 * reach) + 1)
         nt = len(steps)
         direction = (b - a) / np.linalg.norm(b - a, axis=1, keepdims=True)
@@ -95,12 +110,20 @@ def refine_corners(gray: np.ndarray, corners: np.ndarray, camera=None, *, sample
         base = a[:, None, :] + s[None, :, None] * (b - a)[:, None, :]  # (4, S, 2)
         pts = base[:, :, None, :] + steps[None, None, :, None] * normal[:, None, None, :]
         prof = _sample(gray, pts)  # (4, S, T): dark inside -> light outside
-        lo = prof[..., : nt // 3].mean(axis=-1)
-        hi = prof[..., -(nt // 3):].mean(axis=-1)
-        level = 0.5 * (lo + hi)
-        above = prof >= level[..., None]
-        j = np.argmax(above, axis=-1)
-        valid = (hi - lo > 20.0) & above.any(axis=-1) & (j > 0)  # 20 grey levels of contrast
+        if coarse:
+            lo = np.repeat(np.median(prof.min(axis=-1), axis=1)[:, None], samples, axis=1)
+            hi = np.repeat(np.median(prof.max(axis=-1), axis=1)[:, None], samples, axis=1)
+            level = 0.5 * (lo + hi)
+            up = (prof[..., :-1] < level[..., None]) & (prof[..., 1:] >= level[..., None])
+            j = nt - 1 - np.argmax(up[..., ::-1], axis=-1)  # after the outermost upward crossing
+            valid = (hi - lo > 20.0) & up.any(axis=-1)
+        else:
+            lo = prof[..., : nt // 3].mean(axis=-1)
+            hi = prof[..., -(nt // 3):].mean(axis=-1)
+            level = 0.5 * (lo + hi)
+            above = prof >= level[..., None]
+            j = np.argmax(above, axis=-1)
+            valid = (hi - lo > 20.0) & above.any(axis=-1) & (j > 0)  # 20 grey levels of contrast
         j = np.clip(j, 1, nt - 1)
         p1 = np.take_along_axis(prof, j[..., None], axis=-1)[..., 0]
         p0 = np.take_along_axis(prof, (j - 1)[..., None], axis=-1)[..., 0]
@@ -110,7 +133,7 @@ def refine_corners(gray: np.ndarray, corners: np.ndarray, camera=None, *, sample
         edge = base + offset[..., None] * normal[:, None, :]  # (4, S, 2)
         valid &= np.isfinite(offset)
         if np.any(valid.sum(axis=1) < 4):
-            return c0
+            return c0, False
         if camera is not None:
             flat = undistort_pixels(camera, edge.reshape(-1, 2))
             edge = flat.reshape(edge.shape)
@@ -127,16 +150,83 @@ def refine_corners(gray: np.ndarray, corners: np.ndarray, camera=None, *, sample
         lines = np.column_stack([n, -np.einsum("kd,kd->k", n, mean)])
         p = np.cross(np.roll(lines, 1, axis=0), lines)  # corner k joins edges k-1 and k
         if np.any(np.abs(p[:, 2]) < 1e-12):
-            return c0
+            return c0, False
         new = p[:, :2] / p[:, 2:]
         if camera is not None:
             new, _ = cv2.projectPoints(np.column_stack([new, np.ones(4)]), np.zeros(3), np.zeros(3),
                                        camera.matrix, camera.distortion)
             new = new.reshape(4, 2)
         if np.max(np.linalg.norm(new - c0, axis=1)) > 0.5 * side:
-            return c0
+            return c0, False
         c = new
-    return c
+    return c, True
+
+
+
+def _cell_means(gray, corners: np.ndarray, cells: int, per_cell: int = 3) -> np.ndarray:
+    """Mean grey level of the central half of each cell of a marker's grid, shape (cells, cells).
+
+    The quad ``corners`` (4, 2; ArUco's order, the black square's corners) is mapped to the
+    canonical square ``[0, cells]^2`` by a homography (``cv2.getPerspectiveTransform``); each
+    cell is sampled at ``per_cell^2`` points spread over its central half, away from the blur
+    at the cell boundaries.
+    """
+    canon = np.array([[0, 0], [cells, 0], [cells, cells], [0, cells]], np.float32)
+    h = cv2.getPerspectiveTransform(canon, np.asarray(corners, np.float32).reshape(4, 2))
+    offs = (np.arange(per_cell) + 0.5) / per_cell * 0.5 + 0.25  # central half of the cell
+    grid = (np.arange(cells)[:, None] + offs[None, :]).ravel()  # (cells * per_cell,)
+    x, y = np.meshgrid(grid, grid)  # rows follow y (the marker's rows), columns x
+    pts = cv2.perspectiveTransform(np.column_stack([x.ravel(), y.ravel()]).reshape(-1, 1, 2)
+                                   .astype(np.float64), h).reshape(x.shape + (2,))
+    values = _sample(gray, pts)  # (cells * per_cell, cells * per_cell)
+    return values.reshape(cells, per_cell, cells, per_cell).mean(axis=(1, 3))
+
+
+def marker_matches(gray, corners: np.ndarray, dictionary: cv2.aruco.Dictionary, marker_id: int, *,
+                   max_bit_errors: int = 1, max_border_errors: int = 1, min_contrast: float = 20.0) -> bool:
+    """Whether the quad ``corners`` in ``gray`` shows marker ``marker_id`` of ``dictionary``.
+
+    The marker's grid of cells (its bits plus the black border) is read through the homography
+    of the quad (:func:`_cell_means`), each cell's mean thresholded at Otsu's level of all the
+    samples (Otsu 1979, IEEE Trans. Syst. Man Cybern. 9:62, doi:10.1109/TSMC.1979.4310076).
+    It matches when at most ``max_border_errors`` border cells are light, at most
+    ``max_bit_errors`` inner bits differ from the dictionary's (in the orientation the corner
+    order gives), no other id of the dictionary, in any rotation, is as close, and the light and
+    dark cells differ by at least ``min_contrast`` grey levels (an empty region has no code).
+
+    Parameters
+    ----------
+    gray : ndarray, shape (rows, cols)
+        Grey image.
+    corners : ndarray, shape (4, 2)
+        Pixels (u, v) of the black square's corners, ArUco's order.
+    dictionary : cv2.aruco.Dictionary
+    marker_id : int
+    """
+    bits = int(dictionary.markerSize)
+    cells = bits + 2
+    means = _cell_means(gray, corners, cells)
+    if not np.all(np.isfinite(means)):
+        return False
+    level, _ = cv2.threshold(np.clip(np.rint(means), 0, 255).astype(np.uint8).reshape(1, -1), 0, 255,
+                             cv2.THRESH_BINARY | cv2.THRESH_OTSU)
+    light = means > level
+    if light.all() or not light.any():
+        return False
+    if means[light].mean() - means[~light].mean() < min_contrast:
+        return False
+    border = np.ones((cells, cells), dtype=bool)
+    border[1:-1, 1:-1] = False
+    if int(light[border].sum()) > max_border_errors:
+        return False
+    inner = light[1:-1, 1:-1].astype(np.uint8)
+    expected = cv2.aruco.generateImageMarker(dictionary, int(marker_id), cells)[1:-1, 1:-1] > 127
+    errors = int(np.sum(inner.astype(bool) != expected))
+    if errors > max_bit_errors:
+        return False
+    others = min((dictionary.getDistanceToId(inner, j, True) for j in range(len(dictionary.bytesList))
+                  if j != int(marker_id)), default=cells * cells)
+    return errors < others
 
 
 class _Shifted:
@@ -227,3 +317,62 @@ class MarkerDetector:
         for i in clashes:
             del found[i]
         return found
+
+    def recover(self, image: np.ndarray, marker_id: int, corners: np.ndarray, *, search: float = 6.0,
+                max_bit_errors: int = 1) -> np.ndarray | None:
+        """Find marker ``marker_id`` near predicted ``corners`` where the detector missed it.
+
+        ArUco rejects markers whose corners blur (motion blur near heel strike) at its polygon
+        stage, although their edges and bits are plainly visible. Here the predicted quad
+        (4, 2; pixels (u, v), ArUco's order), shifted by up to ``search`` pixels, is refined by
+        the edge lines of :func:`refine_corners`, and the result is accepted only if its bits are
+        those of ``marker_id`` (:func:`marker_matches`) and its area is within 30 % of the
+        predicted one.
+
+        Returns
+        -------
+        ndarray, shape (4, 2), or None
+            The refined corners (full-frame pixels), or None if no shift gives a verified marker.
+        """
+        pred = np.asarray(corners, float).reshape(4, 2)
+        if not np.all(np.isfinite(pred)):
+            return None
+        height, width = image.shape[:2]
+        pad = search + 8.0
+        lo = np.floor(pred.min(axis=0) - pad).astype(int)
+        hi = np.ceil(pred.max(axis=0) + pad).astype(int) + 1
+        if lo[0] < 0 or lo[1] < 0 or hi[0] > width or hi[1] > height:
+            return None  # too near the frame's edge to measure all four edges
+        crop = image[lo[1]:hi[1], lo[0]:hi[0]]
+        if crop.ndim == 3:
+            crop = cv2.cvtColor(crop, cv2.COLOR_BGR2GRAY)
+        gray = _Shifted(crop, lo.astype(float))
+        area = abs(_quad_area(pred))
+        step = max(1.5, min(4.0, 0.12 * float(np.mean(np.linalg.norm(np.roll(pred, -1, axis=0) - pred,
+                                                                        axis=1)))))
+        for shift in _search_shifts(step, search):
+            rough, ok = _refine(gray, pred + shift, self.camera, 12, 2, coarse=True)
+            if not ok:
+                continue
+            refined, ok = _refine(gray, rough, self.camera, 12, 2)
+            if not ok or not np.all(np.isfinite(refined)):
+                continue
+            if not 0.7 < abs(_quad_area(refined)) / area < 1.3:
+                continue
+            if marker_matches(gray, refined, self._dictionary, marker_id, max_bit_errors=max_bit_errors):
+                return refined
+        return None
+
+
+def _quad_area(c: np.ndarray) -> float:
+    """Signed area (pixels^2) of a quad (4, 2) (shoelace formula)."""
+    x, y = c[:, 0], c[:, 1]
+    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
+
+
+def _search_shifts(step: float, search: float) -> list[np.ndarray]:
+    """Shifts (pixels) of a predicted quad to try, nearest first: a grid of ``step`` within
+    ``search`` of zero (the edge refinement converges from within about one step)."""
+    k = int(search // step)
+    shifts = [np.array([i * step, j * step]) for i in range(-k, k + 1) for j in range(-k, k + 1)]
+    return sorted(shifts, key=lambda v: float(np.hypot(*v)))

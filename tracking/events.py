@@ -179,13 +179,16 @@ def _breakpoint(t, ys, idx, lo, hi, n_grid=41):
 
 
 def _refine(t, pl, pr, ok, k, half_window, span):
-    """Breakpoint near the interval (t[k], t[k+1]), searched over ``span`` samples either side."""
+    """Breakpoint near the interval (t[k], t[k+1]), searched over ``span`` valid samples either
+    side (so across a gap the bracket reaches the samples beyond it)."""
     n = len(t)
     idx = _window(ok, k, -1, -1, half_window)[::-1] + _window(ok, k + 1, n, 1, half_window)
     if len(idx) < 2 * half_window:  # too near a gap or an end for a reliable fit
         return None
-    lo = max(0, k - span + 1)
-    hi = min(n - 1, k + span)
+    valid = np.flatnonzero(ok)
+    pos = int(np.searchsorted(valid, k, side="right")) - 1  # the last valid sample <= k
+    lo = int(valid[max(0, pos - span + 1)]) if pos >= 0 else max(0, k - span + 1)
+    hi = int(valid[min(len(valid) - 1, pos + span)]) if pos >= 0 else min(n - 1, k + span)
     return _breakpoint(t, (pl, pr), np.array(sorted(idx)), t[lo], t[hi])
 
 

@@ -154,8 +154,10 @@ class Tracker:
     camera : Camera
     layout : MarkerLayout
     roi : bool
-        Search regions of interest around predicted marker positions (default); False searches the
-        whole frame every time (slower; a reference for tests).
+        Search regions of interest around predicted marker positions (default), and recover leg
+        markers the detector missed where the joint fit or the prediction puts them (verified by
+        their bits, :meth:`_recover`); False searches the whole frame every time and recovers
+        nothing (slower; a reference for tests).
     max_full_search_interval : int
         While a body is lost, the whole frame is searched at intervals 1, 2, 4, ... frames, up to this.
     outlier_rms : float
@@ -199,6 +201,7 @@ class Tracker:
         self.times: list[float] = []
         self.poses: dict[str, list] = {name: [] for name in self.bodies}
         self.detections: list[dict] = []
+        self.recovered: list[list[int]] = []  # per frame: leg marker ids found by recovery
         self.counts = {"frames": 0, "full_searches": 0, "roi_searches": 0}
         self._full_interval = 1
         self._last_full = -10**9
@@ -297,6 +300,14 @@ class Tracker:
                 body.history.append((frame, t, est.rvec, est.tvec))
                 del body.history[:-2]
         walker, used = self._fit_walker(found, preds)
+        recovered = self._recover(image, found, preds, walker) if self.roi else {}
+        if recovered:
+            found = {**found, **recovered}
+            walker, used = self._fit_walker(found, preds)
+            self.counts["recovered"] = self.counts.get("recovered", 0) + len(recovered)
+        if walker is not None and "hip_width" in walker.names:
+            self._width_samples.append(walker.hip_width)
+        self.recovered.append(sorted(recovered))
         self.walker.append(walker)
         self._observations.append(used)
         for name, foot in LEGS.items():
@@ -320,7 +331,45 @@ class Tracker:
         self.detections.append(found)
         self.counts["frames"] += 1
         self.track_seconds += _time.perf_counter() - start
-        return {"markers": found, "poses": poses}
+        return {"markers": found, "poses": poses, "recovered": self.recovered[-1]}
+
+    def _recover(self, image: np.ndarray, found: dict, preds: dict, walker) -> dict:
+        """Leg markers the detector missed, found at their expected corners and verified by their
+        bits (:meth:`toywalk.tracking.detect.MarkerDetector.recover`).
+
+        Expected corners come from this frame's joint fit for a leg it saw (through other
+        markers), else from the leg's constant-velocity prediction; only markers facing the
+        camera (by more than 10 degrees from edge-on) and at least 12 px wide are sought.
+        Returns id -> corners (4, 2).
+        """
+        out = {}
+        for name, foot in LEGS.items():
+            body = self.bodies.get(name)
+            if body is None:
+                continue
+            missing = [k for k, i in enumerate(body.ids) if i not in found]
+            if not missing:
+                continue
+            if walker is not None and foot in walker.seen:
+                rvec, tvec = walker.leg_pose(foot)
+            elif preds.get(name) is not None:
+                rvec, tvec = preds[name][:2]
+            else:
+                continue
+            rot = cv2.Rodrigues(np.asarray(rvec, float).reshape(3, 1))[0]
+            tvec = np.asarray(tvec, float).reshape(3)
+            for k in missing:
+                centre = rot @ body.centres[k] + tvec
+                if (rot @ body.normals[k]) @ centre > -0.17 * np.linalg.norm(centre):  # sin 10 deg
+                    continue
+                marker_id = body.ids[k]
+                uv = self._project(body.points[marker_id], rvec, tvec)
+                if not np.all(np.isfinite(uv)) or np.min(np.ptp(uv, axis=0)) < 12.0:
+                    continue
+                corners = self.detector.recover(image, marker_id, uv)
+                if corners is not None:
+                    out[marker_id] = corners
+        return out
 
     @property
     def hip_width(self) -> float:
@@ -373,8 +422,6 @@ class Tracker:
                     best, obs = w, sub
         if best is None:
             return None, None
-        if "hip_width" in best.names:
-            self._width_samples.append(best.hip_width)
         return best, {f: o[:2] for f, o in obs.items()}
 
     def _best_walker(self, obs: dict, preds: dict):
