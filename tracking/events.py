@@ -29,7 +29,8 @@ import dataclasses
 
 import numpy as np
 
-__all__ = ["HeelStrike", "heel_strikes", "isolated_outliers", "noise_sd", "stance_from_events"]
+__all__ = ["HeelStrike", "fit_samples_per_side", "heel_strikes", "isolated_outliers", "noise_sd",
+           "stance_from_events", "step_samples"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -57,10 +58,11 @@ class HeelStrike:
     z: float
 
 
-def _side_rate(t, y, t0):
-    """Slope at t0 and its variance factor of a quadratic (or line) fitted to (t, y)."""
+def _side_rate(t, y, t0, min_quadratic=4):
+    """Slope at t0 and its variance factor of a quadratic (or, with fewer than ``min_quadratic``
+    samples, a line) fitted to (t, y)."""
     x = t - t0
-    deg = 2 if len(x) >= 4 else 1
+    deg = 2 if len(x) >= min_quadratic else 1
     a = np.vander(x, deg + 1, increasing=True)
     try:
         inv = np.linalg.inv(a.T @ a)
@@ -81,6 +83,42 @@ def noise_sd(y) -> float:
     if len(d4) < 5:
         return np.nan
     return float(1.4826 * np.median(np.abs(d4 - np.median(d4))) / np.sqrt(70.0))
+
+
+def step_samples(pitch_left, pitch_right) -> float:
+    """Step period in samples (frames), from the oscillation of the pitch difference; NaN if unknown.
+
+    The legs pass each other once per step, so ``pitch_left - pitch_right`` changes sign once per
+    step. Sign changes are counted with hysteresis (the difference must go beyond a quarter of its
+    typical amplitude, the 90th percentile of its magnitude) so that noise near a crossing is not
+    a step; the period is the median spacing of successive changes. NaN if fewer than three are
+    seen (too short a series, or legs that do not swap).
+    """
+    d = np.asarray(pitch_left, float) - np.asarray(pitch_right, float)
+    idx = np.flatnonzero(np.isfinite(d))
+    if len(idx) < 5:
+        return np.nan
+    level = 0.25 * float(np.percentile(np.abs(d[idx]), 90))
+    if not level > 0:
+        return np.nan
+    crossings, state = [], 0
+    for i in idx:
+        side = 1 if d[i] > level else -1 if d[i] < -level else 0
+        if side and side != state:
+            if state:
+                crossings.append(i)
+            state = side
+    if len(crossings) < 3:
+        return np.nan
+    return float(np.median(np.diff(crossings)))
+
+
+def fit_samples_per_side(step: float, longest: int) -> int:
+    """Samples a one-sided fit may use so that it rarely spans a heel strike: under half a step
+    (``step`` samples, NaN = unknown), at least 3 (a quadratic) and at most ``longest``."""
+    if not np.isfinite(step):
+        return longest
+    return int(min(longest, max(3, np.floor(step / 2))))
 
 
 def _extrapolation_factor(count: int) -> float:
@@ -201,7 +239,9 @@ def heel_strikes(time, pitch_left, pitch_right, *, half_window: int = 5, min_z: 
     Parameters
     ----------
     half_window : int
-        Samples on each side used for the rate estimates and the breakpoint fit.
+        Samples on each side used for the rate estimates and the breakpoint fit, at most: fewer
+        when the steps are short (:func:`step_samples`, :func:`fit_samples_per_side`: under half
+        a step, at least 3), as is the outlier filter's ``count``.
     min_z : float
         Minimum kink strength (rate jump over its standard error from the measured noise).
     min_jump_fraction : float
@@ -222,12 +262,17 @@ def heel_strikes(time, pitch_left, pitch_right, *, half_window: int = 5, min_z: 
     if not (t.shape == pl.shape == pr.shape) or t.ndim != 1:
         raise ValueError(f"time and pitches must share shape (n,), got {t.shape}, {pl.shape}, {pr.shape}")
     ok = np.isfinite(pl) & np.isfinite(pr) & np.isfinite(t)
-    sd = np.nanmax([noise_sd(pl), noise_sd(pr)]) if ok.sum() > 10 else np.nan
-    if not np.isfinite(sd):
+    sds = [v for v in (noise_sd(pl), noise_sd(pr)) if np.isfinite(v)] if ok.sum() > 10 else []
+    if not sds:  # too few (runs of) samples to measure the noise: no kink can be judged
         return []
-    sd = max(sd, 1e-5)  # rad: a floor for noise-free (synthetic) signals
+    sd = max(max(sds), 1e-5)  # rad: a floor for noise-free (synthetic) signals
+    # Fast steps (a few frames each): every fit window must fit inside a step, or it straddles a
+    # strike and neither side's rate is a rate.
+    half_window = fit_samples_per_side(step_samples(pl, pr), half_window)
+    min_quadratic = 3 if half_window <= 3 else 4  # a line over a fast step is biased by curvature
     if reject_outliers:
-        bad = isolated_outliers(pl, sd) | isolated_outliers(pr, sd)
+        count = fit_samples_per_side(step_samples(pl, pr), 5)
+        bad = isolated_outliers(pl, sd, count=count) | isolated_outliers(pr, sd, count=count)
         if bad.any():
             pl, pr = pl.copy(), pr.copy()
             pl[bad] = np.nan
@@ -247,8 +292,8 @@ def heel_strikes(time, pitch_left, pitch_right, *, half_window: int = 5, min_z: 
         t0 = 0.5 * (t[k] + t[k_next])
         zz = 0.0
         for j, y in enumerate((pl, pr)):
-            rb, vb = _side_rate(t[before], y[before], t0)
-            ra, va = _side_rate(t[after], y[after], t0)
+            rb, vb = _side_rate(t[before], y[before], t0, min_quadratic)
+            ra, va = _side_rate(t[after], y[after], t0, min_quadratic)
             jumps[k, j] = ra - rb
             zz += (ra - rb) ** 2 / (sd**2 * (vb + va))
         z[k] = np.sqrt(zz)
@@ -261,7 +306,7 @@ def heel_strikes(time, pitch_left, pitch_right, *, half_window: int = 5, min_z: 
             continue
         # The rate-jump score is smeared over the fit windows: search a wide bracket first, then
         # refit with the window centred on the breakpoint found.
-        found = _refine(t, pl, pr, ok, k, half_window, span=3)
+        found = _refine(t, pl, pr, ok, k, half_window, span=min(3, half_window))
         if found is None:
             k += 1
             continue

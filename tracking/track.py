@@ -43,7 +43,14 @@ from ..model.kinematics import angles_from_rotations, rotation
 from ..model.trajectory import SIGNALS, TrajectoryTable
 from .camera import Camera
 from .detect import MarkerDetector, merge_regions
-from .events import heel_strikes, isolated_outliers, noise_sd, stance_from_events
+from .events import (
+    fit_samples_per_side,
+    heel_strikes,
+    isolated_outliers,
+    noise_sd,
+    stance_from_events,
+    step_samples,
+)
 from .joint import FEET, WalkerPose, fit_walker, rot_y, walker_from_legs
 from .markers import MarkerLayout, body_points
 from .pose import PoseEstimate, estimate_pose
@@ -627,11 +634,13 @@ def _inconsistent_frames(raw: dict) -> np.ndarray:
     """
     n = len(next(iter(raw.values())))
     bad = np.zeros(n, dtype=bool)
+    # the fits on either side must fit inside a step, or a heel strike bends both (fast steps)
+    count = fit_samples_per_side(step_samples(raw["pitch_left"], raw["pitch_right"]), 5)
     for k in SIGNALS:
         y = raw[k]
         sd = noise_sd(y)
         if np.isfinite(sd) and np.sum(np.isfinite(y)) > 12:
-            bad |= isolated_outliers(y, max(sd, 1e-5))
+            bad |= isolated_outliers(y, max(sd, 1e-5), count=count)
     return bad
 
 
