@@ -36,21 +36,6 @@ ROOT = Path(__file__).resolve().parents[1]
 TOYWALK = str(Path(sys.executable).with_name("toywalk"))
 SIGNALS = ("lean", "steer", "pitch_left", "pitch_right")
 
-#: The toy-sized walker of tests/tracking/test_track.py (leg 15 cm, torus feet, no hip width).
-TOY_TOML = """\
-leg_length = 0.15
-foot_radius = 0.03
-foot_lateral_radius = 0.005
-hip_width = 0.0
-leg_mass = 0.05
-axle_mass = 0.02
-com_offset = [-0.005, 0.1, -0.11]
-inertia = [3e-4, 1e-4, 3e-4, 0.0, 0.0, 0.0]
-slope = 0.0785
-gravity = 9.81
-
-[effects]
-"""
 
 #: stable-toy: 6.4 frames a step at 60 fps (the fast-step case); level 1 only, 18 steps (1.9 s).
 WALKERS = {"compass-3d": {"steps": 8}, "toy": {"steps": 6},
@@ -171,16 +156,15 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory(prefix="track_accuracy_") as tmp:
         folder = Path(args.keep) if args.keep else Path(tmp)
         folder.mkdir(parents=True, exist_ok=True)
-        (folder / "toy.toml").write_text(TOY_TOML)
-        param_files = {"compass-3d": ROOT / "data" / "params" / "compass-3d.toml", "toy": folder / "toy.toml",
+        param_files = {"compass-3d": ROOT / "data" / "params" / "compass-3d.toml",
+                       "toy": ROOT / "data" / "params" / "toy-sized.toml",
                        "stable-toy": ROOT / "data" / "params" / "stable-toy.toml"}
         walkers = {"compass-3d": WALKERS["compass-3d"]} if args.quick else WALKERS
         cases = [c for c in CASES if c[0] == "level1"] if args.quick else CASES
         for name, spec in walkers.items():
             traj = folder / f"{name}.walk.csv"
             _simulate(param_files[name], spec["steps"], traj)
-            report["walkers"][name] = {"params": str(param_files[name].relative_to(ROOT))
-                                       if name != "toy" else "TOY_TOML in this script",
+            report["walkers"][name] = {"params": str(param_files[name].relative_to(ROOT)),
                                        "steps": spec["steps"], "cases": {}}
             for seed, (case, level, overrides) in enumerate(cases, start=1):
                 if case not in spec.get("cases", (case,)):

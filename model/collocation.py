@@ -28,6 +28,7 @@ import casadi as ca
 import numpy as np
 
 from .equations import N_PARAMS, build_functions, layout
+from .gait import Stability
 from .parameters import Params
 from .walker import Walker
 
@@ -35,7 +36,7 @@ __all__ = ["CollocationGait", "solve_collocation"]
 
 
 @dataclasses.dataclass
-class CollocationGait:
+class CollocationGait(Stability):
     """A gait found by collocation.
 
     Attributes
@@ -76,10 +77,6 @@ class CollocationGait:
     iterations: int
     solution: np.ndarray
     multipliers: np.ndarray
-
-    @property
-    def max_abs_eigenvalue(self) -> float:
-        return float(np.max(np.abs(self.eigenvalues)))
 
 
 @dataclasses.dataclass

@@ -22,7 +22,7 @@ import math
 import numpy as np
 from tqdm.auto import tqdm
 
-from .gait import Gait, GaitNotFound, find_gait, solve_fixed_point
+from .gait import Gait, GaitNotFound, Stability, find_gait, solve_fixed_point
 from .parameters import PARAMETER_NAMES, ParameterError, Params
 from .walker import StepFailure, Walker
 
@@ -33,7 +33,7 @@ _MAXIT = 8
 
 
 @dataclasses.dataclass
-class BranchPoint:
+class BranchPoint(Stability):
     """One gait on the branch."""
 
     value: float
@@ -42,14 +42,6 @@ class BranchPoint:
     stride_length: float
     eigenvalues: np.ndarray
     lean_amplitude: float
-
-    @property
-    def max_abs_eigenvalue(self) -> float:
-        return float(np.max(np.abs(self.eigenvalues)))
-
-    @property
-    def stable(self) -> bool:
-        return self.max_abs_eigenvalue < 1.0
 
 
 @dataclasses.dataclass

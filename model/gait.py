@@ -22,8 +22,8 @@ import numpy as np
 from .parameters import Params
 from .walker import STATE_NAMES, Step, StepFailure, Walker, is_planar_symmetric
 
-__all__ = ["Gait", "GaitNotFound", "continue_gait", "find_gait", "planar_gaits", "planar_reduction",
-           "solve_fixed_point"]
+__all__ = ["Gait", "GaitNotFound", "Stability", "continue_gait", "find_gait", "planar_gaits",
+           "planar_reduction", "solve_fixed_point"]
 
 # Newton on the fixed point: residual tolerance (max abs over the state, rad and rad/s scaled by
 # sqrt(l/g)) and iteration cap.
@@ -35,8 +35,23 @@ class GaitNotFound(RuntimeError):
     """No gait was found; the message says what was tried and why it failed."""
 
 
+class Stability:
+    """Stability verdict from a step map's ``eigenvalues`` (an attribute of the class using it)."""
+
+    eigenvalues: np.ndarray
+
+    @property
+    def max_abs_eigenvalue(self) -> float:
+        """Largest step-map eigenvalue modulus; < 1 is asymptotically stable."""
+        return float(np.max(np.abs(self.eigenvalues)))
+
+    @property
+    def stable(self) -> bool:
+        return self.max_abs_eigenvalue < 1.0
+
+
 @dataclasses.dataclass
-class Gait:
+class Gait(Stability):
     """A symmetric period-one gait and its stability.
 
     Attributes
@@ -71,15 +86,6 @@ class Gait:
     residual: float
     iterations: int
     status: str = "converged"
-
-    @property
-    def max_abs_eigenvalue(self) -> float:
-        """Largest step-map eigenvalue modulus; < 1 is asymptotically stable."""
-        return float(np.max(np.abs(self.eigenvalues)))
-
-    @property
-    def stable(self) -> bool:
-        return self.max_abs_eigenvalue < 1.0
 
     def growth_factor(self, n_steps: int) -> float:
         """|lambda_max|^n: how much the worst perturbation grows over n steps."""

@@ -17,22 +17,10 @@ from toywalk.tracking.camera import load_camera
 from toywalk.tracking.markers import load_layout
 from toywalk.tracking.track import track_video
 
+from ..conftest import DATA
 from .synthetic import TOYWALK
 
-TOY = """\
-leg_length = 0.15
-foot_radius = 0.03
-foot_lateral_radius = 0.005
-hip_width = 0.0
-leg_mass = 0.05
-axle_mass = 0.02
-com_offset = [-0.005, 0.1, -0.11]
-inertia = [3e-4, 1e-4, 3e-4, 0.0, 0.0, 0.0]
-slope = 0.0785
-gravity = 9.81
-
-[effects]
-"""
+TOY = DATA / "params" / "toy-sized.toml"
 SIGNALS = ("lean", "steer", "pitch_left", "pitch_right")
 
 
@@ -45,9 +33,8 @@ def _run(*args):
 @pytest.fixture(scope="module")
 def clip(tmp_path_factory):
     folder = tmp_path_factory.mktemp("rendered")
-    (folder / "toy.toml").write_text(TOY)
-    _run("simulate", "--params", folder / "toy.toml", "--steps", "3", "--out", folder / "walk.csv")
-    _run("render", folder / "walk.csv", "--params", folder / "toy.toml", "--seed", "1", "--duration", "1.0",
+    _run("simulate", "--params", TOY, "--steps", "3", "--out", folder / "walk.csv")
+    _run("render", folder / "walk.csv", "--params", TOY, "--seed", "1", "--duration", "1.0",
          "--out", folder / "v.mp4")
     camera = load_camera(folder / "v.camera.json")
     layout = load_layout(folder / "v.markers.json")
