@@ -268,6 +268,7 @@ def heel_strikes(time, pitch_left, pitch_right, *, half_window: int = 5, min_z: 
     sd = max(max(sds), 1e-5)  # rad: a floor for noise-free (synthetic) signals
     # Fast steps (a few frames each): every fit window must fit inside a step, or it straddles a
     # strike and neither side's rate is a rate.
+    longest = half_window
     half_window = fit_samples_per_side(step_samples(pl, pr), half_window)
     min_quadratic = 3 if half_window <= 3 else 4  # a line over a fast step is biased by curvature
     if reject_outliers:
@@ -331,7 +332,99 @@ def heel_strikes(time, pitch_left, pitch_right, *, half_window: int = 5, min_z: 
         foot = "R" if spread > 0 else "L"  # the leading leg has the smaller pitch
         jump = rate_jumps[1] if foot == "R" else rate_jumps[0]
         events.append(HeelStrike(time=tau, foot=foot, index=i0, rate_jump=float(jump), z=float(z[k])))
-    return _alternating(events)
+    events = _alternating(events)
+    if half_window < longest:  # fast steps: too few samples a side for a local fit
+        events = _periodic_refine(t, pl, pr, ok, events)
+    return events
+
+
+def _periodic_refine(t, pl, pr, ok, events, degree=4, iterations=20, min_per_foot=4, max_move=1.5):
+    """Strike times of a fast, periodic gait from one template per striking foot.
+
+    With a few frames a step, a local fit around one strike cannot follow the pitches (they swing
+    through most of their range within a step). The gait repeats, though, and the frames fall at
+    a different phase of each step, so all steps together sample the pitches densely. Around a
+    strike by one foot, each sample with u = t - tau in the half-steps either side (the
+    boundaries halfway to the neighbouring strikes) is explained by a template per pitch
+    (striking leg, other leg): a polynomial of ``degree`` in u on each side of u = 0, continuous
+    there, with a jump in all derivatives (the collision). Alternately the templates are fitted
+    (linear least squares over all strikes of that foot) and each tau is moved to the best shift
+    of its samples against them (a grid within a frame, refined by a parabola); the kink at
+    u = 0 fixes the absolute timing. Strikes of a foot with fewer than ``min_per_foot`` strikes
+    are left as they are, and so is a strike that would move by more than ``max_move`` frames
+    from its local estimate. (Template, or ensemble, alignment of repeated cycles: cf. Ramsay &
+    Silverman 2005, Functional Data Analysis, ch. 7, "registration".)
+    """
+    if len(events) < 3:
+        return events
+    taus = np.array([e.time for e in events])
+    first = taus.copy()
+    feet = np.array([e.foot for e in events])
+    dt = float(np.median(np.diff(t)))
+    step = float(np.median(np.diff(taus)))
+    pitch = {"L": pl, "R": pr}
+    bounds = np.concatenate([[taus[0] - 0.5 * step], 0.5 * (taus[:-1] + taus[1:]), [taus[-1] + 0.5 * step]])
+    windows = [np.flatnonzero(ok & (t >= bounds[i]) & (t < bounds[i + 1])) for i in range(len(taus))]
+    scale = 0.5 * step  # u in units of half a step, for a well-conditioned basis
+
+    def basis(u):
+        x = u / scale
+        left = x < 0
+        cols = [np.ones_like(x)]
+        cols += [np.where(left, x**p, 0.0) for p in range(1, degree + 1)]
+        cols += [np.where(left, 0.0, x**p) for p in range(1, degree + 1)]
+        return np.column_stack(cols)
+
+    def best(grid, vals):
+        k = int(np.argmin(vals))
+        if 0 < k < len(grid) - 1:
+            denom = vals[k - 1] - 2 * vals[k] + vals[k + 1]
+            if denom > 0:
+                return grid[k] + 0.5 * (vals[k - 1] - vals[k + 1]) / denom * (grid[1] - grid[0])
+        return grid[k]
+
+    def template(mine, idx, ys, at):
+        """Template coefficients and total squared residual for strike times ``at``."""
+        a = basis(np.concatenate([t[w] - at[i] for i, w in zip(mine, idx, strict=True)]))
+        coefs, total = [], 0.0
+        for y in ys:
+            c = np.linalg.lstsq(a, np.concatenate([y[w] for w in idx]), rcond=None)[0]
+            coefs.append(c)
+            total += float(np.sum((a @ c - np.concatenate([y[w] for w in idx])) ** 2))
+        return coefs, total
+
+    grid = np.linspace(-dt, dt, 41)
+    for foot in ("L", "R"):
+        mine = np.flatnonzero(feet == foot)
+        if len(mine) < min_per_foot:
+            continue
+        other = "R" if foot == "L" else "L"
+        ys = (pitch[foot], pitch[other])
+        idx = [windows[i] for i in mine]
+        if sum(len(w) for w in idx) < 4 * (2 * degree + 1):
+            continue
+        for _ in range(iterations):
+            coefs, _ = template(mine, idx, ys, taus)
+            shifts = np.zeros(len(mine))
+            for j, (i, w) in enumerate(zip(mine, idx, strict=True)):
+                if len(w) < 4:
+                    continue
+                costs = [sum(float(np.sum((basis(t[w] - taus[i] - g) @ c - y[w]) ** 2))
+                             for c, y in zip(coefs, ys, strict=True)) for g in grid]
+                shifts[j] = best(grid, np.array(costs))
+            shifts -= np.mean(shifts)  # each strike against the others; the common shift is above
+            taus[mine] += shifts
+            # the common shift of this foot's strikes: the only thing the kink at u = 0 fixes
+            common = best(grid, np.array([template(mine, idx, ys, taus + g)[1] for g in grid]))
+            taus[mine] += common
+            if max(abs(common), np.max(np.abs(shifts))) < 1e-3 * dt:
+                break
+    # a strike that moved over more than ``max_move`` frames fitted the templates badly (a step
+    # unlike the others, a long gap): it keeps its local estimate
+    taus = np.where(np.abs(taus - first) <= max_move * dt, taus, first)
+    return [dataclasses.replace(e, time=float(tau),
+                                index=int(np.clip(np.searchsorted(t, tau) - 1, 0, len(t) - 2)))
+            for e, tau in zip(events, taus, strict=True)]
 
 
 def _alternating(events: list) -> list:
