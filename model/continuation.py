@@ -161,6 +161,17 @@ def continue_branch(params: Params, name: str, start: float, end: float, max_poi
         jac[:, na] = step.jacobian_params[active, k] * scale
         return f, jac
 
+    def gait_at(value, active_state):
+        """The gait at ``name = value`` by Newton from a state given by its active components."""
+        z = np.zeros(8)
+        z[active] = active_state
+        return solve_fixed_point(Walker(params.replace(**{name: value}), planar=planar), z)
+
+    def add_point(point):
+        if points[-1].stable != point.stable:
+            events.append(_stability_event(params, name, points[-1], point, planar))
+        points.append(point)
+
     def null_vector(jac, previous):
         _, _, vt = np.linalg.svd(jac)
         t = vt[-1]
@@ -181,20 +192,15 @@ def continue_branch(params: Params, name: str, start: float, end: float, max_poi
         if (predicted[-1] * scale - end) * direction >= 0:
             # The predictor passes the end: land on it with a fixed-parameter solve (this also
             # keeps the parameter inside its valid range when the end is a bound, e.g. w = 0).
-            z = np.zeros(8)
-            z[active] = y[:na]
             try:
-                final = solve_fixed_point(Walker(params.replace(**{name: end}), planar=planar), z)
+                final = gait_at(end, y[:na])
             except GaitNotFound:
                 ds *= 0.5
                 if ds < ds_min:
                     status, message = "stalled", f"no gait found at the end value {name} = {end:.6g}"
                     break
                 continue
-            point = _point(final, end)
-            if points[-1].stable != point.stable:
-                events.append(_stability_event(params, name, points[-1], point, planar))
-            points.append(point)
+            add_point(_point(final, end))
             status, message = "reached", f"reached {name} = {end:.6g}"
             break
         yc, ok, its = predicted.copy(), False, 0
@@ -224,20 +230,14 @@ def continue_branch(params: Params, name: str, start: float, end: float, max_poi
             continue
         new_tangent = null_vector(jac, tangent)
         value = float(yc[-1] * scale)
-        z = np.zeros(8)
-        z[active] = yc[:na]
         try:
-            gait_new = solve_fixed_point(Walker(params.replace(**{name: value}), planar=planar), z)
+            gait_new = gait_at(value, yc[:na])
         except GaitNotFound:
             ds *= 0.5
             continue
-        point = _point(gait_new, value)
-        previous = points[-1]
         if tangent[-1] * new_tangent[-1] < 0:
             events.append(BranchEvent("fold", value, f"the branch turns back at {name} = {value:.6g}"))
-        if previous.stable != point.stable:
-            events.append(_stability_event(params, name, previous, point, planar))
-        points.append(point)
+        add_point(_point(gait_new, value))
         bar.update(1)
         y, tangent = yc, new_tangent
         ds = min(ds_max, ds * (1.5 if its <= 3 else 1.0))

@@ -380,8 +380,6 @@ def continue_gait(start: Params, end: Params, z_start: np.ndarray, steps_per_tim
             continue
         z, s = gait.fixed_point, s_new
         ds = min(0.5, ds * 1.5)
-    if gait is None:
-        gait = solve_fixed_point(Walker(end, steps_per_time_unit=steps_per_time_unit), z)
     return gait
 
 
