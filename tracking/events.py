@@ -351,8 +351,9 @@ def _periodic_refine(t, pl, pr, ok, events, degree=4, iterations=20, min_per_foo
     (linear least squares over all strikes of that foot) and each tau is moved to the best shift
     of its samples against them (a grid within a frame, refined by a parabola); the kink at
     u = 0 fixes the absolute timing. Strikes of a foot with fewer than ``min_per_foot`` strikes
-    are left as they are, and so is a strike that would move by more than ``max_move`` frames
-    from its local estimate. (Template, or ensemble, alignment of repeated cycles: cf. Ramsay &
+    are left as they are; a strike whose move from its local estimate differs by more than
+    ``max_move`` frames from the median move of its foot's strikes takes its local estimate
+    plus that median move. (Template, or ensemble, alignment of repeated cycles: cf. Ramsay &
     Silverman 2005, Functional Data Analysis, ch. 7, "registration".)
     """
     if len(events) < 3:
@@ -419,9 +420,17 @@ def _periodic_refine(t, pl, pr, ok, events, degree=4, iterations=20, min_per_foo
             taus[mine] += common
             if max(abs(common), np.max(np.abs(shifts))) < 1e-3 * dt:
                 break
-    # a strike that moved over more than ``max_move`` frames fitted the templates badly (a step
-    # unlike the others, a long gap): it keeps its local estimate
-    taus = np.where(np.abs(taus - first) <= max_move * dt, taus, first)
+    # The local estimates of fast steps are biased (late by 0.5-1 frame), about alike for every
+    # strike of a foot: a strike whose move differs from its foot's median move by more than
+    # ``max_move`` frames fitted the templates badly (a step unlike the others, a long gap) and
+    # keeps its local estimate, corrected by that median move.
+    move = taus - first
+    typical = np.zeros_like(move)
+    for foot in ("L", "R"):
+        mine = feet == foot
+        if mine.any():
+            typical[mine] = np.median(move[mine])
+    taus = np.where(np.abs(move - typical) <= max_move * dt, taus, first + typical)
     return [dataclasses.replace(e, time=float(tau),
                                 index=int(np.clip(np.searchsorted(t, tau) - 1, 0, len(t) - 2)))
             for e, tau in zip(events, taus, strict=True)]

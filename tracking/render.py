@@ -5,8 +5,11 @@ Frame ``k`` of a video at ``fps`` frames per second shows the trajectory at ``t0
 interpolated: the four angles and the left hip point (both continuous through heel strikes) with
 monotone cubic (PCHIP) interpolation, so that the rolling contact need not be re-integrated; the
 stance leg switches at the heel-strike events. With motion blur the shutter is open over
-``[t - e / (2 fps), t + e / (2 fps)]`` (``e`` = ``exposure``) and the frame averages
-``blur_subframes`` renders spread evenly over that interval; the truth is the state at ``t``.
+``[t - e / (2 fps), t + e / (2 fps)]`` (``e`` = ``exposure``) and the frame averages renders
+spread evenly over that interval: at least ``blur_subframes``, and as many more as keep the
+walker's image from moving more than :data:`BLUR_STEP_PX` pixels between one render and the
+next, so that the blur is continuous, as a real shutter's is, and never a multiple exposure of
+sharp ghosts (which biases a marker detector); the truth is the state at ``t``.
 
 Outputs, written atomically together (temporary names in the output folder, renamed at the end,
 removed on any error or Ctrl-C):
@@ -37,10 +40,17 @@ from .camera import Camera
 from .markers import MarkerLayout
 from .scene import Scene, WalkerState
 
-__all__ = ["NOISE_LEVELS", "Filming", "Motion", "RenderError", "RenderOptions", "RenderResult", "render",
-           "output_paths"]
+__all__ = ["BLUR_STEP_PX", "NOISE_LEVELS", "Filming", "Motion", "RenderError", "RenderOptions",
+           "RenderResult", "render", "output_paths"]
 
 _CODECS = {".mp4": "mp4v", ".avi": "MJPG"}
+
+#: Motion blur: the most the walker's image (any vertex of its legs and flags) may move between
+#: two of the renders a blurred frame averages, in pixels. At 1 px the average of the renders is
+#: a continuous smear to within the edges' own anti-aliased width.
+BLUR_STEP_PX = 1.0
+#: The most renders averaged in one frame (a cost bound: 64 renders span 63 px of motion).
+MAX_SUBFRAMES = 64
 
 
 class RenderError(ValueError):
@@ -58,7 +68,8 @@ class RenderOptions:
     noise_sd : float
         Per-pixel Gaussian sensor noise, standard deviation in grey levels (0-255 scale).
     blur_subframes : int
-        Renders averaged per frame for motion blur (1 = none).
+        Motion blur on (> 1) or off (1), and the fewest renders averaged per frame; more are used
+        where the walker moves fast (:data:`BLUR_STEP_PX`).
     exposure : float
         Shutter-open time as a fraction of the frame interval (used when ``blur_subframes > 1``).
     flicker : float
@@ -406,9 +417,8 @@ class Filming:
                       else np.ones(n))
         self.occluders = _occluders(n, options.occlusion, camera.width, camera.height, options.fps,
                                     self.rng)
-        sub = options.blur_subframes if options.exposure > 0 else 1
-        self.offsets = (np.linspace(-0.5, 0.5, sub) * options.exposure / options.fps if sub > 1
-                        else np.zeros(1))
+        self.blur = options.blur_subframes > 1 and options.exposure > 0
+        self.subframes = np.zeros(n, dtype=int)  # renders averaged in each frame drawn (0: not yet)
         self._acc = np.empty((*self.scene.background.shape[:2], 3), np.float32)
         self._noise = np.empty((camera.height, camera.width, 3), np.float32)
 
@@ -420,14 +430,16 @@ class Filming:
         the noise to be reproducible (it is drawn from ``rng`` frame by frame)."""
         options, t = self.options, float(self.times[k])
         scene, motion = self.scene, self.motion
-        if len(self.offsets) == 1:
+        offsets = self._shutter(t)
+        self.subframes[k] = len(offsets)
+        if len(offsets) == 1:
             canvas = scene.draw(motion.state(t))
         else:
             acc = self._acc
             acc[:] = 0
-            for dt in self.offsets:
+            for dt in offsets:
                 cv2.accumulate(scene.draw(motion.state(t + dt)), acc)
-            canvas = cv2.convertScaleAbs(acc, alpha=1.0 / len(self.offsets))  # >= 0: rounds, saturates
+            canvas = cv2.convertScaleAbs(acc, alpha=1.0 / len(offsets))  # >= 0: rounds, saturates
         frame = scene.finish(canvas)
         for ev in self.occluders:
             if ev[0] <= k < ev[0] + ev[1]:
@@ -445,6 +457,19 @@ class Filming:
             _, buf = cv2.imencode(".jpg", frame, [cv2.IMWRITE_JPEG_QUALITY, options.jpeg_quality])
             frame = cv2.imdecode(buf, cv2.IMREAD_COLOR)
         return frame
+
+    def _shutter(self, t: float) -> np.ndarray:
+        """Times (s, relative to ``t``) of the renders averaged for the frame at ``t``: one without
+        blur; else spread evenly over the open shutter, at least ``blur_subframes`` of them and
+        enough that the walker's image moves at most :data:`BLUR_STEP_PX` between neighbours (its
+        largest displacement over the shutter time, a chord, stands for the path)."""
+        if not self.blur:
+            return np.zeros(1)
+        half = 0.5 * self.options.exposure / self.options.fps
+        moved = np.max(np.linalg.norm(self.scene.walker_pixels(self.motion.state(t + half))
+                                      - self.scene.walker_pixels(self.motion.state(t - half)), axis=1))
+        count = int(min(MAX_SUBFRAMES, max(self.options.blur_subframes, math.ceil(moved / BLUR_STEP_PX) + 1)))
+        return np.linspace(-half, half, count)
 
     def truth(self, k: int) -> tuple[np.ndarray, str, np.ndarray]:
         """(lean, steer, pitch_left, pitch_right) (rad), the stance leg and its contact (x, y) (m) at
@@ -544,6 +569,8 @@ def render(table, params, camera: Camera, layout: MarkerLayout, options: RenderO
                        "interpolation": "PCHIP (angles, left hip point)"},
             "timestamps": ("frame k shows the trajectory at t0 + k / fps; with motion blur the shutter "
                            "is open over t +- exposure / (2 fps)"),
+            "motion_blur": {"renders_per_frame": film.subframes.tolist(), "max_step_px": BLUR_STEP_PX}
+            if film.blur else None,
             "contact": "the stance foot's lowest point, from the drawn geometry",
             "video": video.name,
             "truth": paths["truth"].name,

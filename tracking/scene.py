@@ -455,6 +455,18 @@ class Scene:
             out[leg] = (self.r_cam @ state.rotation[leg], self.r_cam @ state.hip[leg] + self.t_cam)
         return out
 
+    def walker_pixels(self, state: WalkerState) -> np.ndarray:
+        """Canvas pixels (m, 2) of every vertex of the legs' meshes and flags at ``state``."""
+        poses = self.body_poses(state)
+        out = []
+        for leg in ("L", "R"):
+            rot, t = poses[leg]
+            pts = np.concatenate([self.meshes[leg][0].reshape(-1, 3)]
+                                 + [corners for _m, _tex, corners, _n, _stem in self.flags[leg]])
+            pc = pts @ rot.T + t
+            out.append(self._to_pixels(pc[pc[:, 2] > _NEAR]))
+        return np.concatenate(out)
+
     def draw(self, state: WalkerState, out: np.ndarray | None = None) -> np.ndarray:
         """The ideal (undistorted) canvas image of the walker at ``state``, uint8 (hc, wc, 3)."""
         img = self.background.copy() if out is None else out

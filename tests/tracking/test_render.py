@@ -13,7 +13,7 @@ from toywalk.model.trajectory import TrajectoryTable, read_trajectory, write_tra
 from toywalk.sysid.cli import main
 from toywalk.tracking.camera import Camera, default_camera, load_camera, project, save_camera
 from toywalk.tracking.markers import default_layout, load_layout, marker_corners
-from toywalk.tracking.render import Filming, Motion, RenderError, RenderOptions, render
+from toywalk.tracking.render import BLUR_STEP_PX, Filming, Motion, RenderError, RenderOptions, render
 from toywalk.tracking.scene import Scene, default_camera_for, look_at
 
 from ..conftest import DATA
@@ -137,6 +137,36 @@ def test_motion_reproduces_the_samples(compass):
 
 def _small_camera(params):
     return default_camera_for(params, 320, 180)
+
+
+def test_motion_blur_is_a_continuous_smear_not_ghosts(toy_params):
+    """A blurred frame averages renders spread over the open shutter, enough of them that the
+    walker's image moves at most BLUR_STEP_PX between neighbours: twice as many renders then
+    change the frame by little, while the fewest asked for (3) leave ghosts that differ from the
+    smear by far more. Pitch rates of 0.9 rad/s over a 0.2 s shutter (5 fps, exposure 1) move the
+    legs' image by tens of pixels."""
+    table = _walk(toy_params, duration=0.4, n=41)
+    cam, layout = default_camera_for(toy_params, 640, 360), default_layout(toy_params)
+    film = Filming(table, toy_params, cam, layout, RenderOptions(fps=5, blur_subframes=3, exposure=1.0), 0)
+    frame = film.frame(1).astype(float)
+    count, t, half = int(film.subframes[1]), float(film.times[1]), 0.1
+    moved = np.max(np.linalg.norm(film.scene.walker_pixels(film.motion.state(t + half))
+                                  - film.scene.walker_pixels(film.motion.state(t - half)), axis=1))
+    assert moved > 10 * BLUR_STEP_PX
+    assert moved / (count - 1) <= BLUR_STEP_PX < moved / (count - 2)  # enough renders, and no more
+
+    def smear(n):
+        acc = np.zeros(frame.shape)
+        for dt in np.linspace(-half, half, n):
+            acc += film.scene.finish(film.scene.draw(film.motion.state(t + dt))).astype(float)
+        return acc / n
+
+    finer, ghosts = np.abs(smear(2 * count - 1) - frame), np.abs(smear(3) - frame)
+    # Halving a 1 px step moves each edge's share of the smear by at most 1/count of its contrast
+    # (here about 200/28 = 7 grey levels; 3 measured) and leaves most pixels alone (0.02 mean);
+    # the three ghosts differ from the smear by up to an edge's whole contrast (88 measured).
+    assert finer.mean() < 0.1 and finer.max() < 8
+    assert ghosts.max() > 5 * finer.max() and ghosts.mean() > 5 * finer.mean()
 
 
 def test_options_change_the_image_reproducibly(toy_params):
