@@ -12,8 +12,10 @@ section 4). It is found where the leg pitches have a kink, without the walker's 
    through the best three): ``tau`` is the heel-strike time, between frames;
 3. the striking foot is the leading one, the leg with the smaller pitch at ``tau``
    (``theta > 0``: hip ahead of the foot); it becomes the stance foot;
-4. consistency: of two strikes that cannot both be real (closer than half the median step, or
-   the same foot twice in a row within 1.5 steps), the weaker kink is dropped.
+4. consistency: a kink whose shape (the two legs' rate jumps) points away from the typical
+   strike's is dropped; of two strikes that cannot both be real (closer than half the median
+   step, or the same foot twice in a row within 1.5 steps with no long gap between, where the
+   other foot's strike may be hidden), the weaker kink is dropped.
 
 Before all this, isolated wrong samples (a pose that neither the samples before nor those after
 explain, :func:`isolated_outliers`) are treated as gaps, and kinks are also sought across short
@@ -281,7 +283,7 @@ def heel_strikes(time, pitch_left, pitch_right, *, half_window: int = 5, min_z: 
             ok &= ~bad
     n = len(t)
     z = np.zeros(n)
-    jumps = np.zeros((n, 2))
+    leg_z = np.zeros((n, 2))  # each leg's rate jump in standard errors, signed
     valid = np.flatnonzero(ok)
     for k, k_next in zip(valid[:-1], valid[1:], strict=True):
         if k_next - k > max_gap + 1:  # a strike inside a longer gap is not timed
@@ -295,7 +297,7 @@ def heel_strikes(time, pitch_left, pitch_right, *, half_window: int = 5, min_z: 
         for j, y in enumerate((pl, pr)):
             rb, vb = _side_rate(t[before], y[before], t0, min_quadratic)
             ra, va = _side_rate(t[after], y[after], t0, min_quadratic)
-            jumps[k, j] = ra - rb
+            leg_z[k, j] = (ra - rb) / (sd * np.sqrt(vb + va))
             zz += (ra - rb) ** 2 / (sd**2 * (vb + va))
         z[k] = np.sqrt(zz)
     candidates = []
@@ -314,7 +316,12 @@ def heel_strikes(time, pitch_left, pitch_right, *, half_window: int = 5, min_z: 
         i0 = int(np.clip(np.searchsorted(t, found[0]) - 1, 0, n - 2))
         found = _refine(t, pl, pr, ok, i0, half_window, span=1) or found
         tau, rate_jumps = found
-        candidates.append((k, tau, rate_jumps))
+        if candidates and abs(candidates[-1][1] - tau) < 0.5 * (t[1] - t[0]):
+            # two score peaks refined to one kink: keep the stronger
+            if z[k] > z[candidates[-1][0]]:
+                candidates[-1] = (k, tau, rate_jumps)
+        else:
+            candidates.append((k, tau, rate_jumps))
         k = hi
     if not candidates:
         return []
@@ -322,6 +329,7 @@ def heel_strikes(time, pitch_left, pitch_right, *, half_window: int = 5, min_z: 
     size = np.array([np.hypot(*c[2]) for c in candidates])
     reference = np.median(np.sort(size)[len(size) // 2:])
     events: list[HeelStrike] = []
+    kinks = []  # per event: (striking leg, other leg) rate jumps in standard errors
     for (k, tau, rate_jumps), jump_size in zip(candidates, size, strict=True):
         if jump_size < min_jump_fraction * reference:
             continue
@@ -332,7 +340,10 @@ def heel_strikes(time, pitch_left, pitch_right, *, half_window: int = 5, min_z: 
         foot = "R" if spread > 0 else "L"  # the leading leg has the smaller pitch
         jump = rate_jumps[1] if foot == "R" else rate_jumps[0]
         events.append(HeelStrike(time=tau, foot=foot, index=i0, rate_jump=float(jump), z=float(z[k])))
-    events = _alternating(events)
+        kinks.append(leg_z[k, ::-1] if foot == "R" else leg_z[k])
+    events = _like_the_others(events, kinks)
+    long_gaps = [(t[a], t[b]) for a, b in zip(valid[:-1], valid[1:], strict=True) if b - a > max_gap + 1]
+    events = _alternating(events, long_gaps)
     if half_window < longest:  # fast steps: too few samples a side for a local fit
         events = _periodic_refine(t, pl, pr, ok, events)
     return events
@@ -436,21 +447,44 @@ def _periodic_refine(t, pl, pr, ok, events, degree=4, iterations=20, min_per_foo
             for e, tau in zip(events, taus, strict=True)]
 
 
-def _alternating(events: list) -> list:
+def _like_the_others(events: list, kinks, min_cosine: float = 0.5) -> list:
+    """Drop kinks whose shape is unlike the heel strikes'.
+
+    A collision changes both legs' pitch rates the same way at every step, so each strike's kink,
+    the pair (striking leg, other leg) of rate jumps in standard errors, points about the same
+    way: for compass-3d mostly along the striking leg, for the synthetic gait of the tests mostly
+    along the other leg, and with either sign. The componentwise median of the kinks stands for
+    the strikes; a kink more than 60 degrees (``min_cosine``) away from it is a noise kink, such
+    as one leg's blurred frames bending it alone.
+    """
+    if len(events) < 3:
+        return events
+    kinks = np.asarray(kinks, float)
+    typical = np.median(kinks, axis=0)
+    cosine = kinks @ typical / (np.linalg.norm(kinks, axis=1) * np.linalg.norm(typical) + 1e-300)
+    return [e for e, c in zip(events, cosine, strict=True) if c >= min_cosine]
+
+
+def _alternating(events: list, long_gaps=()) -> list:
     """Drop the weaker of two strikes that cannot both be real.
 
     Steps of one gait last about alike and the feet alternate: two strikes less than half the
-    median step apart, or by the same foot less than 1.5 median steps apart (no strike of the
-    other foot between), are one strike and a noise kink; the one with the smaller kink strength
-    ``z`` goes.
+    median step apart, or by the same foot less than 1.5 median steps apart with the stretch
+    between them seen (no gap in ``long_gaps``, (start, end) times, where a strike of the other
+    foot may have gone unseen), are one strike and a noise kink; the one with the smaller kink
+    strength ``z`` goes.
     """
     events = sorted(events, key=lambda e: e.time)
+
+    def seen(a, b):
+        return not any(a.time < end and start < b.time for start, end in long_gaps)
+
     while len(events) >= 3:
         step = float(np.median(np.diff([e.time for e in events])))
         worst = None
         for a, b in zip(events[:-1], events[1:], strict=True):
             gap = b.time - a.time
-            if gap < 0.5 * step or (a.foot == b.foot and gap < 1.5 * step):
+            if gap < 0.5 * step or (a.foot == b.foot and gap < 1.5 * step and seen(a, b)):
                 weaker = a if a.z < b.z else b
                 if worst is None or weaker.z < worst.z:
                     worst = weaker

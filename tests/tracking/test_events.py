@@ -56,6 +56,41 @@ def test_gaps_do_not_invent_strikes():
     assert len(events) == 4
 
 
+def test_strikes_either_side_of_long_gaps_are_kept():
+    """Two strikes hidden in gaps leave three strikes by the same foot: nothing says they are
+    one strike and noise (the other foot's strikes may be in the gaps), so all three stay. Without
+    the gaps in view the same-foot rule kept one of them."""
+    t = np.arange(0.003, 6 * STEP, 1 / 60)
+    pl, pr = gait(t)
+    for hidden in (2 * STEP, 4 * STEP):
+        gap = np.abs(t - hidden) < 0.1
+        pl[gap] = np.nan
+        pr[gap] = np.nan
+    events = heel_strikes(t, pl, pr)
+    assert [e.foot for e in events] == ["R", "R", "R"]
+    assert np.abs(np.array([e.time for e in events]) - STEP * np.array([1, 3, 5])).max() * 60 < 0.1
+
+
+def test_a_kink_unlike_the_strikes_is_dropped():
+    """Kinks as (striking leg, other leg) rate jumps in standard errors. The compass-3d video at
+    noise level 3 gave strikes near (16, 3) and one noise kink (-1.4, 4.9), early in the video;
+    the synthetic gait of these tests gives kinks along the other leg, of either sign there, and a
+    striking-leg part of either sign. Only the kink pointing away from the others goes."""
+    from toywalk.tracking.events import HeelStrike, _like_the_others
+
+    def strikes(n):
+        return [HeelStrike(time=0.4 * i, foot="LR"[i % 2], index=24 * i, rate_jump=1.0, z=10.0)
+                for i in range(n)]
+
+    compass = [(-1.4, 4.9), (17.2, 3.0), (15.0, 2.1), (16.3, 1.6), (12.0, 0.5), (17.4, 2.5)]
+    kept = _like_the_others(strikes(6), compass)
+    assert [e.time for e in kept] == [e.time for e in strikes(6)[1:]]
+    synthetic = [(-1.2, -9.9), (2.9, -9.8), (1.2, -8.9), (2.5, -9.2), (1.5, -10.7)]
+    assert _like_the_others(strikes(5), synthetic) == strikes(5)
+    flipped = [(-k[0], -k[1]) for k in synthetic]  # the same gait with the other sign convention
+    assert _like_the_others(strikes(5), flipped) == strikes(5)
+
+
 def test_no_motion_no_strike():
     t = np.arange(0, 2, 1 / 60)
     rng = np.random.default_rng(0)
