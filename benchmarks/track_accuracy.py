@@ -68,7 +68,7 @@ def _render(traj: Path, params_path: Path, level: int, overrides: dict, out: Pat
 def _match(truth_events, events, step: float, dt: float) -> dict:
     """Pair each true heel strike with the nearest measured one within half a step."""
     measured = list(events)
-    errors, wrong_foot, missed = [], 0, 0
+    errors, z, wrong_foot, missed = [], [], 0, 0
     for ev in truth_events:
         if not measured:
             missed += 1
@@ -79,10 +79,12 @@ def _match(truth_events, events, step: float, dt: float) -> dict:
             continue
         m = measured.pop(j)
         errors.append((m.time - ev["time"]) / dt)
+        z.append((m.time - ev["time"]) / m.time_sd)
         wrong_foot += m.foot != ev["foot"]
     return {"true": len(truth_events), "found": len(events), "missed": missed, "invented": len(measured),
             "wrong_foot": wrong_foot, "timing_rms_frames": float(np.sqrt(np.mean(np.square(errors))))
-            if errors else None, "timing_max_frames": float(np.max(np.abs(errors))) if errors else None}
+            if errors else None, "timing_max_frames": float(np.max(np.abs(errors))) if errors else None,
+            "timing_z_rms": float(np.sqrt(np.mean(np.square(z)))) if z else None}
 
 
 def _track_case(video: Path) -> dict:

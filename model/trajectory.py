@@ -3,7 +3,8 @@
 ``NAME.csv`` has one row per sample with the columns ``time, lean, steer, pitch_left, pitch_right,
 stance`` (s, rad, 'L'/'R'), optional ``*_sd`` standard deviations and optional ``contact_x,
 contact_y`` (m). Missing samples are empty cells. ``NAME.events.csv`` lists heel strikes
-(``time, foot, x, y``). ``NAME.json`` holds the metadata. The three files are written to temporary
+(``time, foot, x, y``, and ``time_sd``, s, where the strike times were measured). ``NAME.json``
+holds the metadata. The three files are written to temporary
 names and renamed into place together, so an interrupted write leaves no partial output.
 """
 
@@ -88,10 +89,12 @@ def write_trajectory(table: TrajectoryTable, out: str | Path) -> tuple[Path, Pat
                 writer.writerow(row)
         with open(tmps[1], "w", newline="") as fh:
             writer = csv.writer(fh)
-            writer.writerow(["time", "foot", "x", "y"])
+            timed = any("time_sd" in ev for ev in table.events)
+            writer.writerow(["time", "foot", "x", "y"] + (["time_sd"] if timed else []))
             for ev in table.events:
                 writer.writerow([_cell(ev["time"]), ev["foot"], _cell(ev.get("x", math.nan)),
-                                 _cell(ev.get("y", math.nan))])
+                                 _cell(ev.get("y", math.nan))]
+                                + ([_cell(ev.get("time_sd", math.nan))] if timed else []))
         with open(tmps[2], "w") as fh:
             json.dump(table.metadata, fh, indent=2, sort_keys=True, default=_json_default)
             fh.write("\n")
@@ -154,5 +157,7 @@ def read_trajectory(path: str | Path) -> TrajectoryTable:
                 events.append({"time": float(row["time"]), "foot": row["foot"],
                                "x": float(row["x"]) if row.get("x") else math.nan,
                                "y": float(row["y"]) if row.get("y") else math.nan})
+                if "time_sd" in row:
+                    events[-1]["time_sd"] = float(row["time_sd"]) if row["time_sd"] else math.nan
     metadata = json.loads(meta_path.read_text()) if meta_path.exists() else {}
     return TrajectoryTable(time, signals, stance, events, metadata)

@@ -51,6 +51,10 @@ class HeelStrike:
         Jump of the striking leg's pitch rate (rad/s).
     z : float
         Kink strength in standard errors of the rate difference.
+    time_sd : float
+        Standard deviation of ``time`` (s) for white pitch noise of the measured level, from the
+        curvature of the fit's residual sum of squares in the strike time (a profile
+        likelihood); larger across a gap. NaN if unknown.
     """
 
     time: float
@@ -58,6 +62,7 @@ class HeelStrike:
     index: int
     rate_jump: float
     z: float
+    time_sd: float = float("nan")
 
 
 def _side_rate(t, y, t0, min_quadratic=4):
@@ -191,8 +196,24 @@ def _window(ok, start, stop, step, count):
     return idx if step > 0 else idx[::-1]
 
 
-def _breakpoint(t, ys, idx, lo, hi, n_grid=41):
-    """Best breakpoint tau in [lo, hi] of continuous piecewise quadratics through all ys[idx]."""
+def _parabola_min(grid, vals, sigma: float) -> tuple[float, float]:
+    """Minimum of a residual sum of squares sampled on a uniform ``grid``: the parabola through the
+    lowest sample and its neighbours gives the place and, for white noise of SD ``sigma`` in the
+    residuals, its SD ``sqrt(2 sigma^2 / curvature)`` (the chi-square rising by one). At an end
+    of the grid or without curvature: the lowest sample and the grid's span over sqrt(12)."""
+    k = int(np.argmin(vals))
+    h = grid[1] - grid[0]
+    if 0 < k < len(grid) - 1:
+        denom = vals[k - 1] - 2 * vals[k] + vals[k + 1]
+        if denom > 0:
+            return (float(grid[k] + 0.5 * (vals[k - 1] - vals[k + 1]) / denom * h),
+                    float(np.sqrt(2 * sigma**2 / (denom / h**2))))
+    return float(grid[k]), float((grid[-1] - grid[0]) / np.sqrt(12.0))
+
+
+def _breakpoint(t, ys, idx, lo, hi, sigma, n_grid=41):
+    """Best breakpoint tau in [lo, hi] of continuous piecewise quadratics through all ys[idx]:
+    (tau, the rate jumps of each y, tau's SD for noise SD ``sigma``)."""
     tt = t[idx]
 
     def sse(tau):
@@ -209,16 +230,14 @@ def _breakpoint(t, ys, idx, lo, hi, n_grid=41):
 
     grid = np.linspace(lo, hi, n_grid)
     vals = np.array([sse(g)[0] for g in grid])
-    k = int(np.argmin(vals))
-    tau = grid[k]
-    if 0 < k < n_grid - 1:
-        denom = vals[k - 1] - 2 * vals[k] + vals[k + 1]
-        if denom > 0:
-            tau = grid[k] + 0.5 * (vals[k - 1] - vals[k + 1]) / denom * (grid[1] - grid[0])
-    return float(tau), sse(tau)[1]
+    # the noise level: the measured one, or the fit's own residuals where they say it is worse
+    dof = len(ys) * len(idx) - (5 * len(ys) + 1)
+    sigma = max(sigma, float(np.sqrt(vals.min() / dof))) if dof > 0 else sigma
+    tau, tau_sd = _parabola_min(grid, vals, sigma)
+    return tau, sse(tau)[1], tau_sd
 
 
-def _refine(t, pl, pr, ok, k, half_window, span):
+def _refine(t, pl, pr, ok, k, half_window, span, sigma):
     """Breakpoint near the interval (t[k], t[k+1]), searched over ``span`` valid samples either
     side (so across a gap the bracket reaches the samples beyond it)."""
     n = len(t)
@@ -229,7 +248,7 @@ def _refine(t, pl, pr, ok, k, half_window, span):
     pos = int(np.searchsorted(valid, k, side="right")) - 1  # the last valid sample <= k
     lo = int(valid[max(0, pos - span + 1)]) if pos >= 0 else max(0, k - span + 1)
     hi = int(valid[min(len(valid) - 1, pos + span)]) if pos >= 0 else min(n - 1, k + span)
-    return _breakpoint(t, (pl, pr), np.array(sorted(idx)), t[lo], t[hi])
+    return _breakpoint(t, (pl, pr), np.array(sorted(idx)), t[lo], t[hi], sigma)
 
 
 def heel_strikes(time, pitch_left, pitch_right, *, half_window: int = 5, min_z: float = 5.0,
@@ -309,19 +328,19 @@ def heel_strikes(time, pitch_left, pitch_right, *, half_window: int = 5, min_z: 
             continue
         # The rate-jump score is smeared over the fit windows: search a wide bracket first, then
         # refit with the window centred on the breakpoint found.
-        found = _refine(t, pl, pr, ok, k, half_window, span=min(3, half_window))
+        found = _refine(t, pl, pr, ok, k, half_window, min(3, half_window), sd)
         if found is None:
             k += 1
             continue
         i0 = int(np.clip(np.searchsorted(t, found[0]) - 1, 0, n - 2))
-        found = _refine(t, pl, pr, ok, i0, half_window, span=1) or found
-        tau, rate_jumps = found
+        found = _refine(t, pl, pr, ok, i0, half_window, 1, sd) or found
+        tau, rate_jumps, tau_sd = found
         if candidates and abs(candidates[-1][1] - tau) < 0.5 * (t[1] - t[0]):
             # two score peaks refined to one kink: keep the stronger
             if z[k] > z[candidates[-1][0]]:
-                candidates[-1] = (k, tau, rate_jumps)
+                candidates[-1] = (k, tau, rate_jumps, tau_sd)
         else:
-            candidates.append((k, tau, rate_jumps))
+            candidates.append((k, tau, rate_jumps, tau_sd))
         k = hi
     if not candidates:
         return []
@@ -330,26 +349,32 @@ def heel_strikes(time, pitch_left, pitch_right, *, half_window: int = 5, min_z: 
     reference = np.median(np.sort(size)[len(size) // 2:])
     events: list[HeelStrike] = []
     kinks = []  # per event: (striking leg, other leg) rate jumps in standard errors
-    for (k, tau, rate_jumps), jump_size in zip(candidates, size, strict=True):
+    for (k, tau, rate_jumps, tau_sd), jump_size in zip(candidates, size, strict=True):
         if jump_size < min_jump_fraction * reference:
             continue
         i0 = int(np.clip(np.searchsorted(t, tau) - 1, 0, n - 2))
         spread = float(np.interp(tau, t[ok], (pl - pr)[ok]))  # across a short gap too
+        # inside a gap the kink itself is unseen, its time extrapolated from either side: add
+        # the uncertainty of a time anywhere in the gap
+        j = int(np.searchsorted(valid, np.searchsorted(t, tau)))
+        if 0 < j < len(valid) and valid[j] - valid[j - 1] > 1:
+            tau_sd = float(np.hypot(tau_sd, (t[valid[j]] - t[valid[j - 1]]) / np.sqrt(12.0)))
         if not abs(spread) >= min_spread:
             continue
         foot = "R" if spread > 0 else "L"  # the leading leg has the smaller pitch
         jump = rate_jumps[1] if foot == "R" else rate_jumps[0]
-        events.append(HeelStrike(time=tau, foot=foot, index=i0, rate_jump=float(jump), z=float(z[k])))
+        events.append(HeelStrike(time=tau, foot=foot, index=i0, rate_jump=float(jump), z=float(z[k]),
+                                 time_sd=tau_sd))
         kinks.append(leg_z[k, ::-1] if foot == "R" else leg_z[k])
     events = _like_the_others(events, kinks)
     long_gaps = [(t[a], t[b]) for a, b in zip(valid[:-1], valid[1:], strict=True) if b - a > max_gap + 1]
     events = _alternating(events, long_gaps)
     if half_window < longest:  # fast steps: too few samples a side for a local fit
-        events = _periodic_refine(t, pl, pr, ok, events)
+        events = _periodic_refine(t, pl, pr, ok, events, sd)
     return events
 
 
-def _periodic_refine(t, pl, pr, ok, events, degree=4, iterations=20, min_per_foot=4, max_move=1.5):
+def _periodic_refine(t, pl, pr, ok, events, sigma, degree=4, iterations=20, min_per_foot=4, max_move=1.5):
     """Strike times of a fast, periodic gait from one template per striking foot.
 
     With a few frames a step, a local fit around one strike cannot follow the pitches (they swing
@@ -387,14 +412,6 @@ def _periodic_refine(t, pl, pr, ok, events, degree=4, iterations=20, min_per_foo
         cols += [np.where(left, 0.0, x**p) for p in range(1, degree + 1)]
         return np.column_stack(cols)
 
-    def best(grid, vals):
-        k = int(np.argmin(vals))
-        if 0 < k < len(grid) - 1:
-            denom = vals[k - 1] - 2 * vals[k] + vals[k + 1]
-            if denom > 0:
-                return grid[k] + 0.5 * (vals[k - 1] - vals[k + 1]) / denom * (grid[1] - grid[0])
-        return grid[k]
-
     def template(mine, idx, ys, at):
         """Template coefficients and total squared residual for strike times ``at``."""
         a = basis(np.concatenate([t[w] - at[i] for i, w in zip(mine, idx, strict=True)]))
@@ -406,6 +423,7 @@ def _periodic_refine(t, pl, pr, ok, events, degree=4, iterations=20, min_per_foo
         return coefs, total
 
     grid = np.linspace(-dt, dt, 41)
+    sds = np.array([e.time_sd for e in events])
     for foot in ("L", "R"):
         mine = np.flatnonzero(feet == foot)
         if len(mine) < min_per_foot:
@@ -418,19 +436,27 @@ def _periodic_refine(t, pl, pr, ok, events, degree=4, iterations=20, min_per_foo
         for _ in range(iterations):
             coefs, _ = template(mine, idx, ys, taus)
             shifts = np.zeros(len(mine))
+            own_sd = np.full(len(mine), np.nan)
             for j, (i, w) in enumerate(zip(mine, idx, strict=True)):
                 if len(w) < 4:
                     continue
                 costs = [sum(float(np.sum((basis(t[w] - taus[i] - g) @ c - y[w]) ** 2))
                              for c, y in zip(coefs, ys, strict=True)) for g in grid]
-                shifts[j] = best(grid, np.array(costs))
+                shifts[j], own_sd[j] = _parabola_min(grid, np.array(costs), sigma)
             shifts -= np.mean(shifts)  # each strike against the others; the common shift is above
             taus[mine] += shifts
             # the common shift of this foot's strikes: the only thing the kink at u = 0 fixes
-            common = best(grid, np.array([template(mine, idx, ys, taus + g)[1] for g in grid]))
+            common, common_sd = _parabola_min(
+                grid, np.array([template(mine, idx, ys, taus + g)[1] for g in grid]), sigma)
             taus[mine] += common
             if max(abs(common), np.max(np.abs(shifts))) < 1e-3 * dt:
                 break
+        # each strike against the templates, and the foot's common shift; the noise level is
+        # the measured one, or the templates' own residuals where they say it is worse
+        _, total = template(mine, idx, ys, taus)
+        dof = 2 * sum(len(w) for w in idx) - 2 * (2 * degree + 1) - len(mine)
+        inflate = max(1.0, float(np.sqrt(total / dof)) / sigma) if dof > 0 else 1.0
+        sds[mine] = np.where(np.isfinite(own_sd), inflate * np.hypot(own_sd, common_sd), sds[mine])
     # The local estimates of fast steps are biased (late by 0.5-1 frame), about alike for every
     # strike of a foot: a strike whose move differs from its foot's median move by more than
     # ``max_move`` frames fitted the templates badly (a step unlike the others, a long gap) and
@@ -441,10 +467,12 @@ def _periodic_refine(t, pl, pr, ok, events, degree=4, iterations=20, min_per_foo
         mine = feet == foot
         if mine.any():
             typical[mine] = np.median(move[mine])
-    taus = np.where(np.abs(move - typical) <= max_move * dt, taus, first + typical)
-    return [dataclasses.replace(e, time=float(tau),
+    kept = np.abs(move - typical) <= max_move * dt
+    taus = np.where(kept, taus, first + typical)
+    sds = np.where(kept, sds, np.hypot([e.time_sd for e in events], max_move * dt))
+    return [dataclasses.replace(e, time=float(tau), time_sd=float(sd),
                                 index=int(np.clip(np.searchsorted(t, tau) - 1, 0, len(t) - 2)))
-            for e, tau in zip(events, taus, strict=True)]
+            for e, tau, sd in zip(events, taus, sds, strict=True)]
 
 
 def _like_the_others(events: list, kinks, min_cosine: float = 0.5) -> list:

@@ -845,7 +845,8 @@ class TrackResult:
         values, sds = (self.smooth, self.smooth_sd) if smoothed else (self.raw, self.raw_sd)
         signals = {k: values[k] for k in SIGNALS}
         signals.update({f"{k}_sd": sds[k] for k in SIGNALS})
-        events = [{"time": e.time, "foot": e.foot, "x": math.nan, "y": math.nan} for e in self.events]
+        events = [{"time": e.time, "foot": e.foot, "x": math.nan, "y": math.nan, "time_sd": e.time_sd}
+                  for e in self.events]
         return TrajectoryTable(self.time, signals, self.stance, events, metadata or {})
 
 

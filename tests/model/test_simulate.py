@@ -66,3 +66,13 @@ def test_trajectory_files_round_trip(compass, tmp_path):
     assert [e["foot"] for e in back.events] == [e.foot for e in traj.events]
     header = (tmp_path / "walk.csv").read_text().splitlines()[0]
     assert header.startswith("time,lean,steer,pitch_left,pitch_right,stance")
+    # simulated strikes are exact: the events file keeps pipeline.md's four columns; measured
+    # ones (the tracker's) add their time_sd, read back too
+    assert (tmp_path / "walk.events.csv").read_text().splitlines()[0] == "time,foot,x,y"
+    assert all("time_sd" not in e for e in back.events)
+    measured = [{**e, "time_sd": 0.001 * (i + 1)} for i, e in enumerate(events)]
+    measured[0]["time_sd"] = np.nan
+    write_trajectory(TrajectoryTable(traj.times, signals, traj.stance, measured, {}), tmp_path / "m.csv")
+    assert (tmp_path / "m.events.csv").read_text().splitlines()[0] == "time,foot,x,y,time_sd"
+    back_sd = [e["time_sd"] for e in read_trajectory(tmp_path / "m.csv").events]
+    assert np.isnan(back_sd[0]) and back_sd[1:] == [e["time_sd"] for e in measured[1:]]
