@@ -40,8 +40,11 @@ SIGNALS = ("lean", "steer", "pitch_left", "pitch_right")
 #: stable-toy: 6.4 frames a step at 60 fps (the fast-step case); level 1 only, 18 steps (1.9 s).
 WALKERS = {"compass-3d": {"steps": 8}, "toy": {"steps": 6},
            "stable-toy": {"steps": 18, "cases": ("level1",)}}
+#: the presets, then one imperfection at a time on a perfect camera (seeds follow the order)
 CASES = [("level0", 0, {}), ("level1", 1, {}), ("level2", 2, {}), ("level3", 3, {}),
-         ("level1+occlusion", 1, {"occlusion": 0.25})]
+         ("level1+occlusion", 1, {"occlusion": 0.25}),
+         ("noise-only", 0, {"noise_sd": 10.0}), ("blur-only", 0, {"blur_subframes": 2, "exposure": 1.0}),
+         ("occlusion-only", 0, {"occlusion": 0.5})]
 
 
 def _simulate(params_path: Path, steps: int, out: Path) -> None:

@@ -33,7 +33,6 @@ from .camera import Camera, undistort_pixels
 __all__ = ["WalkerPose", "fit_walker", "rot_y", "walker_from_legs"]
 
 FEET = ("L", "R")
-_E2 = np.array([0.0, 1.0, 0.0])
 
 
 def rot_y(angle: float) -> np.ndarray:
@@ -103,12 +102,12 @@ class WalkerPose:
 
     def perturbed(self, delta: np.ndarray) -> WalkerPose:
         """A copy moved by ``delta`` in the parameters of ``names`` (for finite differences)."""
-        d = dict(zip(self.names, np.asarray(delta, float), strict=True))
+        d = dict(zip(self.names, np.asarray(delta, float).tolist(), strict=True))
         axle = self.axle @ _exp([d.get("d1", 0.0), 0.0, d.get("d3", 0.0)])
         pitch = {f: self.pitch[f] + d.get(f"pitch_{f}", 0.0) for f in FEET}
         hip = self.hip + np.array([d.get("hx", 0.0), d.get("hy", 0.0), d.get("hz", 0.0)])
-        return dataclasses.replace(self, axle=axle, pitch=pitch, hip=hip,
-                                   hip_width=self.hip_width + d.get("hip_width", 0.0))
+        return WalkerPose(axle=axle, pitch=pitch, hip=hip, hip_width=self.hip_width + d.get("hip_width", 0.0),
+                          rms=self.rms, n_points=self.n_points, names=self.names, normal=self.normal)
 
 
 def walker_from_legs(legs: dict, hip_width: float, prefer: str | None = None):
@@ -133,66 +132,83 @@ def walker_from_legs(legs: dict, hip_width: float, prefer: str | None = None):
 
 
 class _Problem:
-    """Residuals and Jacobian of the joint model for one frame's observations."""
+    """Residuals and Jacobian of the joint model for one frame's observations.
+
+    The seen legs' corners are stacked (left leg's first): ``obj`` (n, 3), ``meas`` (n, 2),
+    each point's leg in ``foot`` (n,; index into ``feet``) and whether it is on the left leg.
+    """
 
     def __init__(self, camera: Camera, observations: dict, fit_width: bool):
         self.feet = [f for f in FEET if f in observations and len(observations[f][0])]
-        self.obj = {f: np.asarray(observations[f][0], float).reshape(-1, 3) for f in self.feet}
+        objs = {f: np.asarray(observations[f][0], float).reshape(-1, 3) for f in self.feet}
         self.fx, self.fy = float(camera.matrix[0, 0]), float(camera.matrix[1, 1])
-        self.meas = {}
-        for f in self.feet:
-            px = np.asarray(observations[f][1], float).reshape(-1, 2)
-            self.meas[f] = undistort_pixels(camera, px) if np.any(camera.distortion) else \
-                (px - camera.matrix[:2, 2]) / [self.fx, self.fy]
         self.fit_width = fit_width
         self.names = ("d1", "d3", *[f"pitch_{f}" for f in self.feet], "hx", "hy", "hz") + \
             (("hip_width",) if fit_width and len(self.feet) == 2 else ())
-        self.n_points = {f: len(self.obj[f]) for f in self.feet}
+        self.n_points = {f: len(objs[f]) for f in self.feet}
+        self._index = {name: i for i, name in enumerate(self.names)}
+        if not self.feet:
+            return
+        self.obj = np.concatenate([objs[f] for f in self.feet])
+        px = np.concatenate([np.asarray(observations[f][1], float).reshape(-1, 2) for f in self.feet])
+        self.meas = undistort_pixels(camera, px) if np.any(camera.distortion) else \
+            (px - camera.matrix[:2, 2]) / [self.fx, self.fy]
+        self.foot = np.repeat(np.arange(len(self.feet)), [len(objs[f]) for f in self.feet])
+        self.left = np.array([f == "L" for f in self.feet])[self.foot]
+        self._pitch_column = np.array([self.names.index(f"pitch_{f}") for f in self.feet])[self.foot]
 
     def evaluate(self, axle, pitch, hip, width, jacobian=True):
-        rows_r, rows_j = [], []
-        k = len(self.names)
-        for f in self.feet:
-            ry = rot_y(pitch[f])
-            y_pitch = self.obj[f] @ ry.T  # Ry(theta) P, axle frame
-            y = y_pitch + (width * _E2 if f == "L" else 0.0)
-            x = y @ axle.T + hip
-            z = x[:, 2]
-            if np.any(z <= 1e-6):
-                return None, None
-            u, v = x[:, 0] / z, x[:, 1] / z
-            res = np.column_stack([self.fx * (u - self.meas[f][:, 0]), self.fy * (v - self.meas[f][:, 1])])
-            rows_r.append(res.ravel())
-            if not jacobian:
-                continue
-            # d(u, v)/dX, (n, 2, 3)
-            dp = np.zeros((len(z), 2, 3))
-            dp[:, 0, 0] = self.fx / z
-            dp[:, 0, 2] = -self.fx * u / z
-            dp[:, 1, 1] = self.fy / z
-            dp[:, 1, 2] = -self.fy * v / z
-            dx = np.zeros((len(z), 3, k))  # dX/dparams
-            # axle perturbed as axle @ exp(d): dX = axle (d x y); e1 x y = (0, -y3, y2),
-            # e3 x y = (-y2, y1, 0), e2 x y = (y3, 0, -y1)
-            zero = np.zeros(len(z))
-            dx[:, :, 0] = np.column_stack([zero, -y[:, 2], y[:, 1]]) @ axle.T
-            dx[:, :, 1] = np.column_stack([-y[:, 1], y[:, 0], zero]) @ axle.T
-            j = self.names.index(f"pitch_{f}")
-            dx[:, :, j] = np.column_stack([y_pitch[:, 2], zero, -y_pitch[:, 0]]) @ axle.T
-            base = self.names.index("hx")
-            dx[:, :, base:base + 3] = np.eye(3)
-            if "hip_width" in self.names and f == "L":
-                dx[:, :, self.names.index("hip_width")] = axle[:, 1]
-            rows_j.append(np.einsum("nab,nbk->nak", dp, dx).reshape(-1, k))
-        r = np.concatenate(rows_r)
-        return r, (np.concatenate(rows_j) if jacobian else None)
+        """Residuals (2n,; pixels, u and v of each point in turn) and, if asked, their Jacobian
+        (2n, k) in the parameters of ``names``; (None, None) if a point is not in front."""
+        theta = np.array([pitch[f] for f in self.feet])[self.foot]
+        cos, sin = np.cos(theta), np.sin(theta)
+        p = self.obj
+        y_pitch = np.empty_like(p)  # Ry(theta) P, axle frame
+        y_pitch[:, 0] = cos * p[:, 0] + sin * p[:, 2]
+        y_pitch[:, 1] = p[:, 1]
+        y_pitch[:, 2] = cos * p[:, 2] - sin * p[:, 0]
+        y = y_pitch.copy()
+        y[self.left, 1] += width
+        x = y @ axle.T + hip
+        z = x[:, 2]
+        if np.any(z <= 1e-6):
+            return None, None
+        u, v = x[:, 0] / z, x[:, 1] / z
+        r = np.empty((len(z), 2))
+        r[:, 0] = self.fx * (u - self.meas[:, 0])
+        r[:, 1] = self.fy * (v - self.meas[:, 1])
+        if not jacobian:
+            return r.ravel(), None
+        # dX/dparams, (n, 3, k): the axle perturbed as axle @ exp(d) moves X by axle (d x y), with
+        # e1 x y = (0, -y3, y2), e3 x y = (-y2, y1, 0); a pitch by axle (e2 x y_pitch) =
+        # axle (y_pitch3, 0, -y_pitch1); the hip point by the unit vectors; the hip width (left
+        # leg) by b2
+        n, k = len(z), len(self.names)
+        dx = np.zeros((n, 3, k))
+        dx[:, :, 0] = y[:, 2, None] * -axle[:, 1] + y[:, 1, None] * axle[:, 2]
+        dx[:, :, 1] = y[:, 1, None] * -axle[:, 0] + y[:, 0, None] * axle[:, 1]
+        dx[np.arange(n), :, self._pitch_column] = y_pitch[:, 2, None] * axle[:, 0] - \
+            y_pitch[:, 0, None] * axle[:, 2]
+        base = self._index["hx"]
+        dx[:, 0, base] = dx[:, 1, base + 1] = dx[:, 2, base + 2] = 1.0
+        if "hip_width" in self._index:
+            dx[self.left, :, self._index["hip_width"]] = axle[:, 1]
+        # through d(u, v)/dX = (1 / z) (fx (1, 0, -u), fy (0, 1, -v))
+        jac = np.empty((n, 2, k))
+        jac[:, 0] = (self.fx / z)[:, None] * (dx[:, 0] - u[:, None] * dx[:, 2])
+        jac[:, 1] = (self.fy / z)[:, None] * (dx[:, 1] - v[:, None] * dx[:, 2])
+        return r.ravel(), jac.reshape(2 * n, k)
 
     def step(self, axle, pitch, hip, width, delta):
-        d = dict(zip(self.names, delta, strict=True))
-        axle = axle @ _exp([d["d1"], 0.0, d["d3"]])
-        pitch = {f: pitch[f] + d.get(f"pitch_{f}", 0.0) for f in FEET}
-        hip = hip + np.array([d["hx"], d["hy"], d["hz"]])
-        return axle, pitch, hip, width + d.get("hip_width", 0.0)
+        """The parameters (axle, pitch, hip, width) moved by ``delta`` (k,), ``names``' order."""
+        delta = np.asarray(delta, float)
+        axle = axle @ _exp([delta[0], 0.0, delta[1]])
+        pitch = {f: pitch[f] + (delta[self._index[f"pitch_{f}"]] if f in self.feet else 0.0) for f in FEET}
+        base = self._index["hx"]
+        hip = hip + delta[base:base + 3]
+        if "hip_width" in self._index:
+            width = width + delta[self._index["hip_width"]]
+        return axle, pitch, hip, width
 
 
 def fit_walker(camera: Camera, observations: dict, init, *, hip_width: float, fit_hip_width: bool = False,
@@ -235,12 +251,14 @@ def fit_walker(camera: Camera, observations: dict, init, *, hip_width: float, fi
         return None
     cost = float(r @ r)
     lam = 1e-3
+    diagonal = np.diag_indices(k)
     for _ in range(max_iterations):
         jtj = jac.T @ jac
         g = jac.T @ r
         improved = False
         for _ in range(8):
-            a = jtj + lam * np.diag(np.diag(jtj) + 1e-12)
+            a = jtj.copy()
+            a[diagonal] += lam * (a[diagonal] + 1e-12)
             try:
                 delta = -np.linalg.solve(a, g)
             except np.linalg.LinAlgError:

@@ -193,6 +193,9 @@ class Tracker:
         if camera.ramp_pose is None and "ramp" not in self.bodies:
             raise TrackError("the camera file has no ramp_pose and the marker layout no ramp marker: "
                              "the ramp frame cannot be found")
+        # each body's marker corners in its frame, (k, 4, 3), in the order of its ids
+        self._corners = {name: np.array([b.points[i] for i in b.ids]).reshape(-1, 4, 3)
+                         for name, b in self.bodies.items()}
         wanted = [i for b in self.bodies.values() for i in b.ids]
         self._owner = {i: b.name for b in self.bodies.values() for i in b.ids}
         self.detector = MarkerDetector(layout.dictionary, ids=wanted, camera=camera)
@@ -203,6 +206,7 @@ class Tracker:
             raise ValueError(f"hip_width must be a length >= 0 (m) or None, got {hip_width!r}")
         self.hip_width_given = None if hip_width is None else float(hip_width)
         self._width_samples: list[float] = []
+        self._width_in_use = (-1, math.nan)  # (samples, self.hip_width from them)
         self.walker: list[WalkerPose | None] = []
         self._observations: list[dict | None] = []
         self.times: list[float] = []
@@ -233,23 +237,26 @@ class Tracker:
         centres = body.centres @ rot.T + tvec
         normals = body.normals @ rot.T
         facing = np.einsum("ij,ij->i", normals, centres) < 0
-        regions = []
-        for k, marker_id in enumerate(body.ids):
-            if not facing[k]:
-                continue
-            uv = self._project(body.points[marker_id], rvec, tvec)
-            if not np.all(np.isfinite(uv)):
-                continue
-            lo, hi = uv.min(axis=0), uv.max(axis=0)
-            size = float(np.max(hi - lo))
-            # margin: the marker's quiet zone plus how far a prediction error of one frame's motion
-            # moves it (the motion itself is already in the prediction)
-            motion = self._project(body.points[marker_id], rvec + dr, tvec + dt) - uv
-            slack = 0.35 * size + 8.0 + float(np.nanmax(np.abs(motion))) if np.all(np.isfinite(motion)) \
-                else 0.5 * size + 8.0
-            regions.append((lo[0] - slack, lo[1] - slack, hi[0] + slack + 1, hi[1] + slack + 1))
-            self._min_side = min(self._min_side, float(np.min(hi - lo)))
-        return regions
+        if not facing.any():
+            return []
+        # all facing markers' corners projected at once, (k, 4, 2)
+        corners = self._corners[body.name][facing].reshape(-1, 3)
+        uv = self._project(corners, rvec, tvec).reshape(-1, 4, 2)
+        # margin: the marker's quiet zone plus how far a prediction error of one frame's motion
+        # moves it (the motion itself is already in the prediction)
+        motion = self._project(corners, rvec + dr, tvec + dt).reshape(-1, 4, 2) - uv
+        seen = np.all(np.isfinite(uv), axis=(1, 2))
+        uv, motion = uv[seen], motion[seen]
+        if not len(uv):
+            return []
+        lo, hi = uv.min(axis=1), uv.max(axis=1)
+        size = np.max(hi - lo, axis=1)
+        moving = np.all(np.isfinite(motion), axis=(1, 2))
+        reach = np.max(np.abs(np.where(moving[:, None, None], motion, 0.0)), axis=(1, 2))
+        slack = np.where(moving, 0.35 * size + 8.0 + reach, 0.5 * size + 8.0)
+        self._min_side = min(self._min_side, float(np.min(hi - lo)))
+        return list(zip(lo[:, 0] - slack, lo[:, 1] - slack, hi[:, 0] + slack + 1, hi[:, 1] + slack + 1,
+                        strict=True))
 
     def _project(self, points, rvec, tvec):
         uv, _ = cv2.projectPoints(points.reshape(-1, 1, 3), rvec.reshape(3, 1), tvec.reshape(3, 1),
@@ -432,7 +439,9 @@ class Tracker:
         return best, {f: o[:2] for f, o in obs.items()}
 
     def _best_walker(self, obs: dict, preds: dict):
-        width = self.hip_width
+        if self._width_in_use[0] != len(self._width_samples):  # the median changes with the samples
+            self._width_in_use = (len(self._width_samples), self.hip_width)
+        width = self._width_in_use[1]
         # the hip width is a constant: estimated in the first frames that show it well, then fixed
         fit_width = self.hip_width_given is None and len(self._width_samples) < _WIDTH_SAMPLES and \
             len(obs) == 2 and all(len(o[2]) >= 2 for o in obs.values())

@@ -1,12 +1,14 @@
 """The joint fit of both legs sharing one hip axis (tracking/joint.py): recovery of a known pose
-from exact and from noisy corners, the analytic Jacobian against finite differences, the hip width,
-and the mirror ambiguity that a single marker leaves and the other leg removes."""
+from exact and from noisy corners, the analytic Jacobian against finite differences and the stacked
+model against the leg-by-leg one, the hip width, and the mirror ambiguity that a single marker
+leaves and the other leg removes."""
 
 import cv2
 import numpy as np
 import pytest
 from toywalk.model.kinematics import leg_poses
 from toywalk.model.parameters import Params
+from toywalk.tracking.camera import undistort_pixels
 from toywalk.tracking.joint import _Problem, fit_walker, rot_y, walker_from_legs
 from toywalk.tracking.markers import body_points, default_layout
 from toywalk.tracking.scene import default_camera_for
@@ -124,3 +126,55 @@ def test_one_marker_leg_is_pinned_by_the_other(setup):
 def test_rot_y_is_a_pitch():
     # model.md: Ry(theta) turns b3 (foot to hip) towards +x (forward) for theta > 0
     np.testing.assert_allclose(rot_y(0.3) @ [0, 0, 1], [np.sin(0.3), 0, np.cos(0.3)], atol=1e-15)
+
+
+def _reference_evaluate(camera, observations, names, axle, pitch, hip, width):
+    """The joint model's residuals and Jacobian leg by leg, as ``_Problem.evaluate`` computed
+    them before it stacked the legs: a slow, obvious reference."""
+    rows_r, rows_j = [], []
+    k = len(names)
+    fx, fy = camera.matrix[0, 0], camera.matrix[1, 1]
+    e2 = np.array([0.0, 1.0, 0.0])
+    for f in ("L", "R"):
+        if f not in observations:
+            continue
+        obj, pixels = observations[f]
+        meas = undistort_pixels(camera, pixels)
+        y_pitch = obj @ rot_y(pitch[f]).T
+        y = y_pitch + (width * e2 if f == "L" else 0.0)
+        x = y @ axle.T + hip
+        z = x[:, 2]
+        u, v = x[:, 0] / z, x[:, 1] / z
+        rows_r.append(np.column_stack([fx * (u - meas[:, 0]), fy * (v - meas[:, 1])]).ravel())
+        dp = np.zeros((len(z), 2, 3))
+        dp[:, 0, 0], dp[:, 0, 2] = fx / z, -fx * u / z
+        dp[:, 1, 1], dp[:, 1, 2] = fy / z, -fy * v / z
+        dx = np.zeros((len(z), 3, k))
+        zero = np.zeros(len(z))
+        dx[:, :, 0] = np.column_stack([zero, -y[:, 2], y[:, 1]]) @ axle.T
+        dx[:, :, 1] = np.column_stack([-y[:, 1], y[:, 0], zero]) @ axle.T
+        dx[:, :, names.index(f"pitch_{f}")] = np.column_stack([y_pitch[:, 2], zero, -y_pitch[:, 0]]) @ axle.T
+        base = names.index("hx")
+        dx[:, :, base:base + 3] = np.eye(3)
+        if "hip_width" in names and f == "L":
+            dx[:, :, names.index("hip_width")] = axle[:, 1]
+        rows_j.append(np.einsum("nab,nbk->nak", dp, dx).reshape(-1, k))
+    return np.concatenate(rows_r), np.concatenate(rows_j)
+
+
+@pytest.mark.parametrize("ids, fit_width", [(None, True), (None, False), ({0, 2, 3}, True), ({0, 1}, False),
+                                            ({2, 3}, True)])
+def test_stacked_model_matches_leg_by_leg(setup, ids, fit_width):
+    """Both legs' corners stacked in one array give the leg-by-leg residuals and Jacobian, for
+    both legs (hip width fitted or not), one marker on a leg, and one leg alone."""
+    camera, _, truth, corners = setup
+    obs = {f: o[:2] for f, o in observations(corners, ids=ids).items()}
+    problem = _Problem(camera, obs, fit_width)
+    assert problem.names[-1:] == (("hip_width",) if fit_width and len(obs) == 2 else ("hz",))
+    axle, pitch, hip = start(truth)
+    r, jac = problem.evaluate(axle, pitch, hip, 0.1)
+    r_ref, jac_ref = _reference_evaluate(camera, obs, problem.names, axle, pitch, hip, 0.1)
+    # the same sums in another order: agreement to rounding (|J| ~ 1e3 px per unit, r ~ 10 px)
+    np.testing.assert_allclose(r, r_ref, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(jac, jac_ref, rtol=0, atol=1e-12 * np.abs(jac_ref).max())
+    assert np.abs(r).max() > 1.0  # a start off the truth: residuals of pixels, not zero
