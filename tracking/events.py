@@ -335,12 +335,17 @@ def heel_strikes(time, pitch_left, pitch_right, *, half_window: int = 5, min_z: 
         i0 = int(np.clip(np.searchsorted(t, found[0]) - 1, 0, n - 2))
         found = _refine(t, pl, pr, ok, i0, half_window, 1, sd) or found
         tau, rate_jumps, tau_sd = found
+        # the kink's strength and shape where it was placed: the strongest score within a frame
+        # or two of tau (the peak that led here may lie on the far side of a gap)
+        i0 = int(np.clip(np.searchsorted(t, tau) - 1, 0, n - 2))
+        near = np.arange(max(0, i0 - 2), min(n - 1, i0 + 3))
+        at = int(near[np.argmax(z[near])]) if z[near].max() > 0 else k
         if candidates and abs(candidates[-1][1] - tau) < 0.5 * (t[1] - t[0]):
             # two score peaks refined to one kink: keep the stronger
-            if z[k] > z[candidates[-1][0]]:
-                candidates[-1] = (k, tau, rate_jumps, tau_sd)
+            if z[at] > z[candidates[-1][0]]:
+                candidates[-1] = (at, tau, rate_jumps, tau_sd)
         else:
-            candidates.append((k, tau, rate_jumps, tau_sd))
+            candidates.append((at, tau, rate_jumps, tau_sd))
         k = hi
     if not candidates:
         return []
@@ -483,13 +488,19 @@ def _like_the_others(events: list, kinks, min_cosine: float = 0.5) -> list:
     way: for compass-3d mostly along the striking leg, for the synthetic gait of the tests mostly
     along the other leg, and with either sign. The componentwise median of the kinks stands for
     the strikes; a kink more than 60 degrees (``min_cosine``) away from it is a noise kink, such
-    as one leg's blurred frames bending it alone.
+    as one leg's blurred frames bending it alone. Kinks with no common shape (their median
+    shorter than half their median length: as many point one way as the opposite) are not
+    strikes one can tell from noise, and none is kept; this happens when every strike is hidden
+    in a gap and only the gaps' edges bend the signals (heavy motion blur).
     """
     if len(events) < 3:
         return events
     kinks = np.asarray(kinks, float)
     typical = np.median(kinks, axis=0)
-    cosine = kinks @ typical / (np.linalg.norm(kinks, axis=1) * np.linalg.norm(typical) + 1e-300)
+    length = np.linalg.norm(kinks, axis=1)
+    if np.linalg.norm(typical) < 0.5 * np.median(length):
+        return []
+    cosine = kinks @ typical / (length * np.linalg.norm(typical) + 1e-300)
     return [e for e, c in zip(events, cosine, strict=True) if c >= min_cosine]
 
 
