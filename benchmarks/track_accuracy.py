@@ -90,7 +90,48 @@ def _match(truth_events, events, step: float, dt: float) -> dict:
             "timing_z_rms": float(np.sqrt(np.mean(np.square(z)))) if z else None}
 
 
-def _track_case(video: Path) -> dict:
+#: cases drawn as figures (benchmarks/results/track_<walker>.png): tracked against truth
+FIGURES = {("compass-3d", "level1"), ("toy", "level1"), ("stable-toy", "level1")}
+
+
+def _figure(result, truth, title: str, out: Path) -> None:
+    """The four signals tracked (points with 2-SD bars) over the truth (line), their errors, and the
+    heel strikes (true: grey lines; measured: dashed, L blue, R red)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(4, 2, figsize=(12, 9), sharex=True, gridspec_kw={"width_ratios": [3, 2]})
+    t = result.time - result.time[0]
+    for row, k in enumerate(SIGNALS):
+        ax, ax_err = axes[row]
+        ax.plot(t, np.degrees(truth.signals[k]), "k-", lw=1, label="truth")
+        ax.errorbar(t, np.degrees(result.raw[k]), yerr=2 * np.degrees(result.raw_sd[k]), fmt=".", ms=3,
+                    lw=0.6, color="tab:orange", label="tracked (2 SD)")
+        err = np.degrees(result.raw[k] - truth.signals[k])
+        ax_err.plot(t, err, ".", ms=3, color="tab:orange")
+        ax_err.fill_between(t, -2 * np.degrees(result.raw_sd[k]), 2 * np.degrees(result.raw_sd[k]),
+                            color="tab:orange", alpha=0.2, lw=0)
+        ax_err.axhline(0, color="k", lw=0.5)
+        ax.set_ylabel(f"{k} (deg)")
+        ax_err.set_ylabel("error (deg)")
+        for a in (ax, ax_err):
+            for e in truth.events:
+                a.axvline(e["time"] - result.time[0], color="0.6", lw=0.8)
+            for e in result.events:
+                a.axvline(e.time - result.time[0], color="tab:blue" if e.foot == "L" else "tab:red",
+                          lw=0.8, ls="--")
+    axes[0, 0].legend(loc="upper right", fontsize=8)
+    axes[-1, 0].set_xlabel("time (s)")
+    axes[-1, 1].set_xlabel("time (s)")
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(out, dpi=90)
+    plt.close(fig)
+
+
+def _track_case(video: Path, figure: Path | None = None) -> dict:
     from toywalk.model.trajectory import read_trajectory
     from toywalk.tracking.camera import load_camera
     from toywalk.tracking.markers import load_layout
@@ -120,6 +161,12 @@ def _track_case(video: Path) -> dict:
     out["hip_width_m"] = result.hip_width
     out["counts"] = result.counts
     out["track_ms_per_frame"] = 1e3 * wall / len(result.time)
+    if figure is not None:
+        s = out["signals"]
+        _figure(result, truth, f"{video.name}: RMS error lean {s['lean']['rms_deg']:.2f}, steer "
+                f"{s['steer']['rms_deg']:.2f}, pitches {s['pitch_left']['rms_deg']:.2f} / "
+                f"{s['pitch_right']['rms_deg']:.2f} deg; strikes {out['heel_strikes']['found']}/"
+                f"{out['heel_strikes']['true']}", figure)
     return out
 
 
@@ -176,7 +223,9 @@ def main(argv=None) -> int:
                     continue
                 video = folder / f"{name}.{case}.mp4"
                 render_s = _render(traj, param_files[name], level, overrides, video, seed)
-                res = _track_case(video)
+                figure = (Path(args.out).parent / f"track_{name}.png"
+                          if (name, case) in FIGURES and not args.quick else None)
+                res = _track_case(video, figure)
                 res.update({"noise_level": level, "overrides": overrides, "seed": seed,
                             "render_s": render_s})
                 report["walkers"][name]["cases"][case] = res
