@@ -436,7 +436,9 @@ def _periodic_refine(t, pl, pr, ok, events, sigma, degree=4, iterations=20, min_
         other = "R" if foot == "L" else "L"
         ys = (pitch[foot], pitch[other])
         idx = [windows[i] for i in mine]
-        if sum(len(w) for w in idx) < 4 * (2 * degree + 1):
+        # two values (the pitches) per sample; at least twice as many values as unknowns (the
+        # two templates' coefficients and the strikes' shifts)
+        if sum(len(w) for w in idx) < 2 * (2 * degree + 1) + len(mine):
             continue
         for _ in range(iterations):
             coefs, _ = template(mine, idx, ys, taus)
