@@ -314,9 +314,34 @@ def cmd_demo(args) -> int:
     print(f"\n3. Simulated 30 steps: {info['status']}; trajectory in {out / 'walk.csv'}")
     status = main(["render", str(out / "walk.csv"), "--params", str(stable_path), "--seed", "0",
                    "--duration", "2", "--out", str(out / "video.mp4")])
+    if status != 0:
+        return status
+    print(f"4. Synthetic video of its first 2 s (known truth beside it): {out / 'video.mp4'}")
+    status = main(["track", str(out / "video.mp4"), "--camera", str(out / "video.camera.json"),
+                   "--markers", str(out / "video.markers.json"), "--out", str(out / "tracked.csv"),
+                   "--overlay", str(out / "tracked.overlay.mp4")])
     if status == 0:
-        print(f"4. Synthetic video of its first 2 s (known truth beside it): {out / 'video.mp4'}")
+        _print_tracking_errors(out / "tracked.csv", out / "video.truth.csv")
     return status
+
+
+def _print_tracking_errors(tracked_path: Path, truth_path: Path) -> None:
+    """The tracked trajectory against the renderer's truth: RMS error per angle, heel strikes."""
+    from toywalk.model.trajectory import SIGNALS, read_trajectory
+
+    tracked, truth = read_trajectory(tracked_path), read_trajectory(truth_path)
+    print(f"5. Tracked back from the video ({tracked_path}), against the truth:")
+    for name in SIGNALS:
+        err = np.degrees(tracked.signals[name] - truth.signals[name])
+        ok = np.isfinite(err)
+        rms = float(np.sqrt(np.mean(err[ok] ** 2))) if ok.any() else math.nan
+        print(f"   {name:<12s} RMS error {rms:.2f} deg over {ok.sum()} of {len(err)} frames")
+    dt = float(np.median(np.diff(truth.time)))
+    true = [e for e in truth.events if truth.time[0] + 3 * dt < e["time"] < truth.time[-1] - 3 * dt]
+    errors = [min(abs(m["time"] - e["time"]) for m in tracked.events) / dt for e in true if tracked.events]
+    timing = f", timing RMS {math.sqrt(np.mean(np.square(errors))):.2f} frame" if errors else ""
+    print(f"   heel strikes {len(tracked.events)} found, {len(true)} true (more than 3 frames from "
+          f"the ends){timing}")
 
 
 #: Modules that add commands of later stages: each defines ``register(subparsers)``, adding its
