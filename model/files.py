@@ -1,4 +1,5 @@
-"""Writing files so that an interrupted write never leaves a half-written file behind."""
+"""Writing files so that an interrupted write never leaves a half-written file behind, and reading
+JSON files with one clear line when they are missing or malformed."""
 
 from __future__ import annotations
 
@@ -6,7 +7,7 @@ import json
 import os
 from pathlib import Path
 
-__all__ = ["atomic_write_json", "atomic_write_text"]
+__all__ = ["atomic_write_json", "atomic_write_text", "read_json_object"]
 
 
 def atomic_write_text(path: str | Path, text: str) -> None:
@@ -23,3 +24,17 @@ def atomic_write_text(path: str | Path, text: str) -> None:
 def atomic_write_json(path: str | Path, data) -> None:
     """Write ``data`` as indented JSON, atomically (see :func:`atomic_write_text`)."""
     atomic_write_text(path, json.dumps(data, indent=2) + "\n")
+
+
+def read_json_object(path: str | Path, what: str, error: type[Exception]) -> dict:
+    """The JSON object in ``path``; ``error`` with one line naming ``what`` (e.g. "camera file")
+    if the file is missing, unreadable, not JSON or not a JSON object."""
+    try:
+        data = json.loads(Path(path).read_text())
+    except FileNotFoundError as err:
+        raise error(f"{what} not found: {path}") from err
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+        raise error(f"cannot read {what} {path}: {str(err).splitlines()[0]}") from err
+    if not isinstance(data, dict):
+        raise error(f"{what} {path} must hold a JSON object")
+    return data

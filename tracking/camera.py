@@ -16,13 +16,12 @@ All pixel-to-world conversion happens in the named functions of this module.
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 from pathlib import Path
 
 import cv2
 import numpy as np
-from toywalk.model.files import atomic_write_json
+from toywalk.model.files import atomic_write_json, read_json_object
 
 __all__ = [
     "Camera",
@@ -119,15 +118,7 @@ class Camera:
 
 def load_camera(path: str | Path) -> Camera:
     """Read a camera JSON file; a clear :class:`CameraError` for a missing or malformed file."""
-    path = Path(path)
-    try:
-        data = json.loads(path.read_text())
-    except FileNotFoundError as err:
-        raise CameraError(f"camera file not found: {path}") from err
-    except (OSError, json.JSONDecodeError) as err:
-        raise CameraError(f"cannot read camera file {path}: {err}") from err
-    if not isinstance(data, dict):
-        raise CameraError(f"camera file {path} must hold a JSON object")
+    data = read_json_object(path, "camera file", CameraError)
     try:
         return Camera.from_dict(data)
     except CameraError as err:

@@ -26,13 +26,12 @@ top-right ``(s/2, s/2, 0)``, bottom-right ``(s/2, -s/2, 0)``, bottom-left ``(-s/
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 from pathlib import Path
 
 import cv2
 import numpy as np
-from toywalk.model.files import atomic_write_json
+from toywalk.model.files import atomic_write_json, read_json_object
 
 __all__ = [
     "BODIES",
@@ -216,13 +215,7 @@ class MarkerLayout:
 
 def load_layout(path: str | Path) -> MarkerLayout:
     """Read a marker layout JSON file; a one-line :class:`LayoutError` for a missing or bad file."""
-    path = Path(path)
-    try:
-        data = json.loads(path.read_text())
-    except FileNotFoundError as err:
-        raise LayoutError(f"marker layout file not found: {path}") from err
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
-        raise LayoutError(f"cannot read marker layout {path}: {str(err).splitlines()[0]}") from err
+    data = read_json_object(path, "marker layout file", LayoutError)
     try:
         return MarkerLayout.from_dict(data)
     except LayoutError as err:

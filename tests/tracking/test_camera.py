@@ -97,6 +97,15 @@ def test_missing_file(tmp_path):
         load_camera(tmp_path / "nope.json")
 
 
+def test_binary_file(tmp_path):
+    """An image passed as the camera file: one line, not a UnicodeDecodeError."""
+    path = tmp_path / "photo.json"
+    path.write_bytes(b"\x89PNG\r\n\x1a\n\x00\xff")
+    with pytest.raises(CameraError, match="cannot read camera file .*decode") as info:
+        load_camera(path)
+    assert "\n" not in str(info.value)
+
+
 def test_default_camera_field_of_view():
     cam = default_camera(1280, 720, horizontal_fov_deg=40.0)
     # the ray through the left edge of the image makes 20 degrees with the axis
