@@ -335,6 +335,10 @@ class Scene:
                 flags.append((m, tex, marker_corners(m, tex.margin),
                               marker_pose_matrix(m)[:3, 2], _stem_mesh(params, m)))
             self.flags[leg] = flags
+        # every vertex of each leg's mesh and flags, leg frame (for how far the image moves)
+        self._vertices = {leg: np.concatenate([self.meshes[leg][0].reshape(-1, 3)]
+                                              + [corners for _m, _t, corners, _n, _s in self.flags[leg]])
+                          for leg in ("L", "R")}
         self.background = self._draw_static(dictionary)
 
     # canvas: an undistorted pinhole image covering the distorted one
@@ -461,9 +465,7 @@ class Scene:
         out = []
         for leg in ("L", "R"):
             rot, t = poses[leg]
-            pts = np.concatenate([self.meshes[leg][0].reshape(-1, 3)]
-                                 + [corners for _m, _tex, corners, _n, _stem in self.flags[leg]])
-            pc = pts @ rot.T + t
+            pc = self._vertices[leg] @ rot.T + t
             out.append(self._to_pixels(pc[pc[:, 2] > _NEAR]))
         return np.concatenate(out)
 
