@@ -68,28 +68,6 @@ def _render(traj: Path, params_path: Path, level: int, overrides: dict, out: Pat
     return time.perf_counter() - start
 
 
-def _match(truth_events, events, step: float, dt: float) -> dict:
-    """Pair each true heel strike with the nearest measured one within half a step."""
-    measured = list(events)
-    errors, z, wrong_foot, missed = [], [], 0, 0
-    for ev in truth_events:
-        if not measured:
-            missed += 1
-            continue
-        j = int(np.argmin([abs(m.time - ev["time"]) for m in measured]))
-        if abs(measured[j].time - ev["time"]) > 0.5 * step:
-            missed += 1
-            continue
-        m = measured.pop(j)
-        errors.append((m.time - ev["time"]) / dt)
-        z.append((m.time - ev["time"]) / m.time_sd)
-        wrong_foot += m.foot != ev["foot"]
-    return {"true": len(truth_events), "found": len(events), "missed": missed, "invented": len(measured),
-            "wrong_foot": wrong_foot, "timing_rms_frames": float(np.sqrt(np.mean(np.square(errors))))
-            if errors else None, "timing_max_frames": float(np.max(np.abs(errors))) if errors else None,
-            "timing_z_rms": float(np.sqrt(np.mean(np.square(z)))) if z else None}
-
-
 #: cases drawn as figures (benchmarks/results/track_<walker>.png): tracked against truth
 FIGURES = {("compass-3d", "level1"), ("toy", "level1"), ("stable-toy", "level1")}
 
@@ -133,6 +111,7 @@ def _figure(result, truth, title: str, out: Path) -> None:
 
 def _track_case(video: Path, figure: Path | None = None) -> dict:
     from toywalk.model.trajectory import read_trajectory
+    from toywalk.tracking.accuracy import match_strikes, signal_errors
     from toywalk.tracking.camera import load_camera
     from toywalk.tracking.markers import load_layout
     from toywalk.tracking.track import track_video
@@ -144,20 +123,12 @@ def _track_case(video: Path, figure: Path | None = None) -> dict:
     result, source = track_video(video, camera, layout)
     wall = time.perf_counter() - start
     truth = read_trajectory(f"{stem}.truth.csv")
-    if len(truth.time) != len(result.time) or not np.allclose(truth.time, result.time, atol=1e-4):
-        raise RuntimeError(f"{video}: frame times differ from the truth's")
-    out = {"frames": len(result.time), "signals": {}}
-    for k in SIGNALS:
-        err = np.degrees(result.raw[k] - truth.signals[k])
-        ok = np.isfinite(err)
-        z = err[ok] / np.degrees(result.raw_sd[k][ok])
-        out["signals"][k] = {"rms_deg": float(np.sqrt(np.mean(err[ok] ** 2))) if ok.any() else None,
-                             "max_deg": float(np.max(np.abs(err[ok]))) if ok.any() else None,
-                             "gaps": int((~ok).sum()),
-                             "z_rms": float(np.sqrt(np.mean(z**2))) if ok.any() else None}
+    measured = result.table()
+    out = {"frames": len(result.time), "signals": signal_errors(measured, truth)}
     times = [e["time"] for e in truth.events]
     step = float(np.median(np.diff(times))) if len(times) > 1 else 0.4
-    out["heel_strikes"] = _match(truth.events, result.events, step, float(np.median(np.diff(truth.time))))
+    out["heel_strikes"] = match_strikes(truth.events, measured.events, step,
+                                        float(np.median(np.diff(truth.time))))
     out["hip_width_m"] = result.hip_width
     out["counts"] = result.counts
     out["track_ms_per_frame"] = 1e3 * wall / len(result.time)

@@ -327,20 +327,22 @@ def cmd_demo(args) -> int:
 
 def _print_tracking_errors(tracked_path: Path, truth_path: Path) -> None:
     """The tracked trajectory against the renderer's truth: RMS error per angle, heel strikes."""
-    from toywalk.model.trajectory import SIGNALS, read_trajectory
+    from toywalk.model.trajectory import read_trajectory
+    from toywalk.tracking.accuracy import match_strikes, signal_errors
 
     tracked, truth = read_trajectory(tracked_path), read_trajectory(truth_path)
     print(f"5. Tracked back from the video ({tracked_path}), against the truth:")
-    for name in SIGNALS:
-        err = np.degrees(tracked.signals[name] - truth.signals[name])
-        ok = np.isfinite(err)
-        rms = float(np.sqrt(np.mean(err[ok] ** 2))) if ok.any() else math.nan
-        print(f"   {name:<12s} RMS error {rms:.2f} deg over {ok.sum()} of {len(err)} frames")
+    for name, e in signal_errors(tracked, truth).items():
+        rms = math.nan if e["rms_deg"] is None else e["rms_deg"]
+        print(f"   {name:<12s} RMS error {rms:.2f} deg over {len(truth.time) - e['gaps']} of "
+              f"{len(truth.time)} frames")
     dt = float(np.median(np.diff(truth.time)))
     true = [e for e in truth.events if truth.time[0] + 3 * dt < e["time"] < truth.time[-1] - 3 * dt]
-    errors = [min(abs(m["time"] - e["time"]) for m in tracked.events) / dt for e in true if tracked.events]
-    timing = f", timing RMS {math.sqrt(np.mean(np.square(errors))):.2f} frame" if errors else ""
-    print(f"   heel strikes {len(tracked.events)} found, {len(true)} true (more than 3 frames from "
+    step = float(np.median(np.diff([e["time"] for e in truth.events]))) if len(truth.events) > 1 else 0.4
+    strikes = match_strikes(true, tracked.events, step, dt)
+    timing = (f", timing RMS {strikes['timing_rms_frames']:.2f} frame"
+              if strikes["timing_rms_frames"] is not None else "")
+    print(f"   heel strikes {strikes['found']} found, {strikes['true']} true (more than 3 frames from "
           f"the ends){timing}")
 
 
