@@ -30,17 +30,20 @@ def _run(*args):
     return r
 
 
+def _render_and_track(folder, params, steps: int, seed: int, duration: float):
+    """Simulate ``steps`` steps, render ``duration`` s at noise level 1 and track the video:
+    (TrackResult, the renderer's truth)."""
+    _run("simulate", "--params", params, "--steps", steps, "--out", folder / "walk.csv")
+    _run("render", folder / "walk.csv", "--params", params, "--seed", seed, "--duration", duration,
+         "--out", folder / "v.mp4")
+    result, _ = track_video(folder / "v.mp4", load_camera(folder / "v.camera.json"),
+                            load_layout(folder / "v.markers.json"))
+    return result, read_trajectory(folder / "v.truth.csv")
+
+
 @pytest.fixture(scope="module")
 def clip(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("rendered")
-    _run("simulate", "--params", TOY, "--steps", "3", "--out", folder / "walk.csv")
-    _run("render", folder / "walk.csv", "--params", TOY, "--seed", "1", "--duration", "1.0",
-         "--out", folder / "v.mp4")
-    camera = load_camera(folder / "v.camera.json")
-    layout = load_layout(folder / "v.markers.json")
-    result, _ = track_video(folder / "v.mp4", camera, layout)
-    truth = read_trajectory(folder / "v.truth.csv")
-    return result, truth
+    return _render_and_track(tmp_path_factory.mktemp("rendered"), TOY, 3, 1, 1.0)
 
 
 @pytest.mark.slow
@@ -81,13 +84,7 @@ STABLE = DATA / "params" / "stable-toy.toml"
 @pytest.fixture(scope="module")
 def fast_clip(tmp_path_factory):
     """data/params/stable-toy.toml steps every 6.4 frames: 1.2 s hold 11 heel strikes."""
-    folder = tmp_path_factory.mktemp("rendered_fast")
-    _run("simulate", "--params", STABLE, "--steps", "13", "--out", folder / "walk.csv")
-    _run("render", folder / "walk.csv", "--params", STABLE, "--seed", "2", "--duration", "1.2",
-         "--out", folder / "v.mp4")
-    result, _ = track_video(folder / "v.mp4", load_camera(folder / "v.camera.json"),
-                            load_layout(folder / "v.markers.json"))
-    return result, read_trajectory(folder / "v.truth.csv")
+    return _render_and_track(tmp_path_factory.mktemp("rendered_fast"), STABLE, 13, 2, 1.2)
 
 
 @pytest.mark.slow
