@@ -13,12 +13,10 @@ from __future__ import annotations
 
 import datetime
 import gc
-import json
 import math
 import os
 import platform
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -28,6 +26,7 @@ import scipy
 from scipy.optimize import linear_sum_assignment
 from toywalk.model.engine import Kernel
 from toywalk.model.equations import build_functions
+from toywalk.model.files import atomic_write_json
 from toywalk.model.gait import find_gait
 from toywalk.model.parameters import Params, load_params
 from toywalk.model.walker import Walker
@@ -376,16 +375,7 @@ def case_gait_solves() -> dict:
 def write_json(data: dict, path: Path) -> None:
     """Write ``data`` as JSON atomically (temporary file in the same folder, then rename)."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".bench-", suffix=".json")
-    try:
-        with os.fdopen(fd, "w") as fh:
-            json.dump(data, fh, indent=2)
-            fh.write("\n")
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    atomic_write_json(path, data)
 
 
 def _us(t: dict) -> str:
@@ -395,50 +385,56 @@ def _us(t: dict) -> str:
 
 def print_table(res: dict) -> None:
     names = list(res["rhs_call"])
+
+    def row(label: str, cell) -> None:
+        """One line: ``label``, then ``cell(name)`` for each walker, 22 characters wide."""
+        print(f"   {label:40}" + "".join(cell(n) for n in names))
+
+    def time_cell(t: dict) -> str:
+        return f"{_us(t):>22}"
+
+    def ratio_cell(r: dict) -> str:
+        return f"{r['ratio_median']:>21.1f}x"
+
+    def sci_cell(v: float) -> str:
+        return f"{v:>22.2e}"
+
     print()
     print("1. right-hand side, one call (median)      " + "".join(f"{n:>22}" for n in names))
     for key, label in (("compiled_kernel", "compiled, preallocated kernel"),
                        ("compiled_function_plain_call", "compiled, plain fn(x, p)"),
                        ("casadi_vm", "CasADi VM, plain fn(x, p)"),
                        ("casadi_vm_preallocated_kernel", "CasADi VM, preallocated kernel")):
-        print(f"   {label:40}" + "".join(f"{_us(res['rhs_call'][n][key]):>22}" for n in names))
+        row(label, lambda n, key=key: time_cell(res["rhs_call"][n][key]))
     for key, label in (("speedup_kernel_vs_vm", "speedup compiled kernel vs VM plain"),
                        ("speedup_kernel_vs_vm_kernel", "speedup compiled kernel vs VM kernel")):
-        print(f"   {label:40}" + "".join(
-            f"{res['rhs_call'][n][key]['ratio_median']:>21.1f}x" for n in names))
+        row(label, lambda n, key=key: ratio_cell(res["rhs_call"][n][key]))
     print("2. step map (value), default resolution")
-    print(f"   {'time (median)':40}" + "".join(
-        f"{_us(res['step_map'][n]['timing']):>22}" for n in names))
-    print(f"   {'max |z_plus - z_plus(128/unit)|':40}" + "".join(
-        f"{res['step_map'][n]['z_plus_max_abs_diff_vs_reference']:>22.2e}" for n in names))
-    print(f"   {'|T - T(128/unit)| (s)':40}" + "".join(
-        f"{res['step_map'][n]['step_time_abs_diff_vs_reference_s']:>22.2e}" for n in names))
+    step_map = res["step_map"]
+    row("time (median)", lambda n: time_cell(step_map[n]["timing"]))
+    row("max |z_plus - z_plus(128/unit)|",
+        lambda n: sci_cell(step_map[n]["z_plus_max_abs_diff_vs_reference"]))
+    row("|T - T(128/unit)| (s)", lambda n: sci_cell(step_map[n]["step_time_abs_diff_vs_reference_s"]))
     print("3. step map + AD Jacobian")
-    print(f"   {'time (median)':40}" + "".join(
-        f"{_us(res['step_map_jacobian'][n]['timing']):>22}" for n in names))
-    print(f"   {'max |J - J(128/unit)|':40}" + "".join(
-        f"{res['step_map_jacobian'][n]['jacobian_max_abs_diff_vs_reference']:>22.2e}"
-        for n in names))
+    jac = res["step_map_jacobian"]
+    row("time (median)", lambda n: time_cell(jac[n]["timing"]))
+    row("max |J - J(128/unit)|", lambda n: sci_cell(jac[n]["jacobian_max_abs_diff_vs_reference"]))
     print("4. vs SciPy solve_ivp DOP853 (rtol=atol=1e-12) + event + collide + central FD (1e-6)")
     b = res["baseline"]
     for kind, label in (("vm", "uncompiled rhs"), ("compiled", "compiled rhs")):
-        key = f"baseline_{kind}_rhs"
+        base = {n: b[n][f"baseline_{kind}_rhs"] for n in names}
         print(f"   baseline, {label}")
-        print(f"   {'  step map time (median)':40}" + "".join(
-            f"{_us(b[n][key]['step_map']):>22}" for n in names))
-        print(f"   {'  step map + Jacobian time (median)':40}" + "".join(
-            f"{_us(b[n][key]['step_map_and_jacobian']):>22}" for n in names))
-        print(f"   {'  speedup of ours, step map':40}" + "".join(
-            f"{b[n][key]['speedup_step_map']['ratio_median']:>21.1f}x" for n in names))
-        print(f"   {'  speedup of ours, step map + Jacobian':40}" + "".join(
-            f"{b[n][key]['speedup_step_map_and_jacobian']['ratio_median']:>21.1f}x"
-            for n in names))
-        print(f"   {'  eigenvalue diff vs ours':40}" + "".join(
-            f"{b[n][key]['eigenvalue_diff_vs_ours']:>22.2e}" for n in names))
-        print(f"   {'  eigenvalue diff vs 128/unit reference':40}" + "".join(
-            f"{b[n][key]['eigenvalue_diff_vs_reference_128']:>22.2e}" for n in names))
-    print(f"   {'ours: eigenvalue diff vs 128/unit ref.':40}" + "".join(
-        f"{b[n]['ours']['eigenvalue_diff_vs_reference_128']:>22.2e}" for n in names))
+        row("  step map time (median)", lambda n, base=base: time_cell(base[n]["step_map"]))
+        row("  step map + Jacobian time (median)",
+            lambda n, base=base: time_cell(base[n]["step_map_and_jacobian"]))
+        row("  speedup of ours, step map", lambda n, base=base: ratio_cell(base[n]["speedup_step_map"]))
+        row("  speedup of ours, step map + Jacobian",
+            lambda n, base=base: ratio_cell(base[n]["speedup_step_map_and_jacobian"]))
+        row("  eigenvalue diff vs ours", lambda n, base=base: sci_cell(base[n]["eigenvalue_diff_vs_ours"]))
+        row("  eigenvalue diff vs 128/unit reference",
+            lambda n, base=base: sci_cell(base[n]["eigenvalue_diff_vs_reference_128"]))
+    row("ours: eigenvalue diff vs 128/unit ref.",
+        lambda n: sci_cell(b[n]["ours"]["eigenvalue_diff_vs_reference_128"]))
     pl = b["planar_simplest"]
     print("   simplest walker, eigenvalue error vs published (Garcia et al. 1998):")
     print(f"     ours {pl['ours']['eigenvalue_error_vs_published']:.2e}   baseline "

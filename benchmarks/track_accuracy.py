@@ -213,14 +213,11 @@ def main(argv=None) -> int:
               f"{report['throughput']['ratio']:.2f}")
     report["load_average_end"] = os.getloadavg()
     report["run_seconds"] = time.perf_counter() - started
+    from toywalk.model.files import atomic_write_text
+
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    tmp_out = out.with_name(f".{out.name}.tmp")
-    try:
-        tmp_out.write_text(json.dumps(report, indent=2, default=_jsonable) + "\n")
-        os.replace(tmp_out, out)
-    finally:
-        tmp_out.unlink(missing_ok=True)
+    atomic_write_text(out, json.dumps(report, indent=2, default=_jsonable) + "\n")
     print(f"wrote {out} in {report['run_seconds']:.0f} s")
     return 0
 
