@@ -290,10 +290,11 @@ def heel_strikes(time, pitch_left, pitch_right, *, half_window: int = 5, min_z: 
     # Fast steps (a few frames each): every fit window must fit inside a step, or it straddles a
     # strike and neither side's rate is a rate.
     longest = half_window
-    half_window = fit_samples_per_side(step_samples(pl, pr), half_window)
+    step = step_samples(pl, pr)
+    half_window = fit_samples_per_side(step, half_window)
     min_quadratic = 3 if half_window <= 3 else 4  # a line over a fast step is biased by curvature
     if reject_outliers:
-        count = fit_samples_per_side(step_samples(pl, pr), 5)
+        count = fit_samples_per_side(step, 5)
         bad = isolated_outliers(pl, sd, count=count) | isolated_outliers(pr, sd, count=count)
         if bad.any():
             pl, pr = pl.copy(), pr.copy()
