@@ -27,9 +27,9 @@ from functools import cache
 import casadi as ca
 import numpy as np
 
-from .equations import N_PARAMS, build_functions, layout
+from .equations import build_functions, layout
 from .gait import Stability
-from .parameters import Params
+from .parameters import N_INPUT, Params, view
 from .walker import Walker
 
 __all__ = ["CollocationGait", "solve_collocation"]
@@ -86,26 +86,36 @@ class _Problem:
     n_dyn: int
     n_int: int
     degree: int
+    phases: int
     lbg: np.ndarray
     ubg: np.ndarray
     tau: np.ndarray
     jac_fun: ca.Function  # (w, p) -> dg/dw
 
+    @property
+    def phase_size(self) -> int:
+        """Decision variables of one step: [T, X_0, (Xc_k (degree states), X_{k+1}) per interval]."""
+        return 1 + self.n_dyn + self.n_int * self.n_dyn * (self.degree + 1)
 
-def _w_layout(n_dyn: int, n_int: int, degree: int):
-    """Decision vector w = [T, X_0, (Xc_k (degree states), X_{k+1}) for each interval]."""
-    per_interval = n_dyn * (degree + 1)
-    return 1 + n_dyn + n_int * per_interval
+    @property
+    def phase_equations(self) -> int:
+        """Collocation and continuity equations of one step, then its guard h = 0."""
+        return self.n_int * self.n_dyn * (self.degree + 1) + 1
+
+
+def _phase_input(p: ca.MX, phase: int) -> ca.MX:
+    """The parameter input of a stride's step: the left leg in stance first, then the right."""
+    return p if phase % 2 == 0 else ca.vertcat(p[:-1], -p[-1])
 
 
 @cache
-def _problem(planar: bool, n_intervals: int, degree: int) -> _Problem:
+def _problem(planar: bool, n_intervals: int, degree: int, phases: int = 1) -> _Problem:
     lay = layout(planar)
     nd = lay.n_dyn
     base = build_functions(planar)
     pad = lay.nx - nd
     xs = ca.SX.sym("x", nd)
-    ps = ca.SX.sym("p", N_PARAMS)
+    ps = ca.SX.sym("p", N_INPUT)
     full = ca.vertcat(xs, ca.SX.zeros(pad))
     f_dyn = ca.Function("f_dyn", [xs, ps], [base["rhs"](full, ps)[:nd]])
     g_end = ca.Function("g_end", [xs, ps], [base["guard"](full, ps)])
@@ -115,38 +125,55 @@ def _problem(planar: bool, n_intervals: int, degree: int) -> _Problem:
 
     tau = np.array(ca.collocation_points(degree, "legendre"))
     c_mat, d_vec, _ = (np.array(m) for m in ca.collocation_coeff(list(tau)))
-    w = ca.MX.sym("w", _w_layout(nd, n_intervals, degree))
-    p = ca.MX.sym("p", N_PARAMS)
-    big_t = w[0]
-    x0 = w[1:1 + nd]
-    h = big_t / n_intervals
-    eqs, lb, ub = [], [], []
-    xk = x0
-    offset = 1 + nd
+    size = 1 + nd + n_intervals * nd * (degree + 1)
+    w = ca.MX.sym("w", size * phases)
+    p = ca.MX.sym("p", N_INPUT)
+    par = view(p)
     f_map = f_dyn.map(degree)
-    for _ in range(n_intervals):
-        xc = ca.reshape(w[offset:offset + nd * degree], nd, degree)
-        offset += nd * degree
-        x_next = w[offset:offset + nd]
-        offset += nd
-        z = ca.horzcat(xk, xc)
-        eqs.append(ca.vec(ca.mtimes(z, c_mat) - h * f_map(xc, ca.repmat(p, 1, degree))))
-        eqs.append(ca.mtimes(z, d_vec) - x_next)
-        xk = x_next
+    eqs, lb, ub = [], [], []
+    starts, ends, guards = [], [], []
+    # Per step: collocation and continuity on its own [0, T_k], then its guard h(x_N) = 0.
+    for phase in range(phases):
+        pk = _phase_input(p, phase)
+        offset = phase * size
+        big_t = w[offset]
+        x0 = w[offset + 1:offset + 1 + nd]
+        h = big_t / n_intervals
+        xk = x0
+        offset += 1 + nd
+        for _ in range(n_intervals):
+            xc = ca.reshape(w[offset:offset + nd * degree], nd, degree)
+            offset += nd * degree
+            x_next = w[offset:offset + nd]
+            offset += nd
+            z = ca.horzcat(xk, xc)
+            eqs.append(ca.vec(ca.mtimes(z, c_mat) - h * f_map(xc, ca.repmat(pk, 1, degree))))
+            eqs.append(ca.mtimes(z, d_vec) - x_next)
+            xk = x_next
+        guard = g_end(xk, pk)
+        eqs.append(guard[0])
+        starts.append(x0)
+        ends.append(xk)
+        guards.append((big_t, x0, xk, guard, pk))
     n_eq = sum(e.shape[0] for e in eqs)
     lb += [0.0] * n_eq
     ub += [0.0] * n_eq
-    guard = g_end(xk, p)
-    # Periodicity with relabel and mirror, the heel strike on the guard, ahead and moving down.
-    eqs += [x0 - coll(xk, p), guard[0]]
-    lb += [0.0] * (nd + 1)
-    ub += [0.0] * (nd + 1)
-    # Exclude the trivial zero-length "step" with the legs together: the swing foot starts behind
-    # the stance foot (as in Walker.step) and the step lasts at least 0.05 sqrt(l/g).
-    start_ahead = g_end(x0, p)[1]
-    eqs += [guard[1], rdot(xk, p), big_t - 0.05 * ca.sqrt(p[0] / p[16]), start_ahead + 1e-6 * p[0]]
-    lb += [0.0, -np.inf, 0.0, -np.inf]
-    ub += [np.inf, 0.0, np.inf, 0.0]
+    # Each step starts where the previous one's collision (relabel and mirror) leaves it; the
+    # last closes the period.
+    for phase in range(phases):
+        nxt = (phase + 1) % phases
+        eqs.append(starts[nxt] - coll(ends[phase], _phase_input(p, phase)))
+    lb += [0.0] * (nd * phases)
+    ub += [0.0] * (nd * phases)
+    # The heel strike ahead and moving down; exclude the trivial zero-length "step" with the legs
+    # together: the swing foot starts behind the stance foot (as in Walker.step) and the step
+    # lasts at least 0.05 sqrt(l/g).
+    for big_t, x0, xk, guard, pk in guards:
+        start_ahead = g_end(x0, pk)[1]
+        eqs += [guard[1], rdot(xk, pk), big_t - 0.05 * ca.sqrt(par.leg_length / par.gravity),
+                start_ahead + 1e-6 * par.leg_length]
+        lb += [0.0, -np.inf, 0.0, -np.inf]
+        ub += [np.inf, 0.0, np.inf, 0.0]
     g = ca.vertcat(*eqs)
     nlp = {"x": w, "p": p, "f": 0, "g": g}
     opts = {
@@ -163,29 +190,30 @@ def _problem(planar: bool, n_intervals: int, degree: int) -> _Problem:
     }
     solver = ca.nlpsol("gait_collocation", "ipopt", nlp, opts)
     constraints = ca.Function("g", [w, p], [g])
-    # Equality part without the periodicity: used for the step-map Jacobian (start state free).
     jac_fun = ca.Function("dg", [w, p], [ca.jacobian(g, w)])
     return _Problem(solver=solver, constraints=constraints, n_dyn=nd, n_int=n_intervals,
-                    degree=degree, lbg=np.array(lb), ubg=np.array(ub), tau=tau, jac_fun=jac_fun)
+                    degree=degree, phases=phases, lbg=np.array(lb), ubg=np.array(ub), tau=tau,
+                    jac_fun=jac_fun)
 
 
 def _initial_guess(walker: Walker, z0: np.ndarray, prob: _Problem) -> np.ndarray:
-    """Collocation variables from a forward simulation of one step from z0 (Hermite-free: states
-    at the collocation times by cubic interpolation of the recorded integration grid)."""
+    """Collocation variables from a forward simulation of one period from z0 (states at the
+    collocation times by cubic Hermite interpolation of the recorded integration grid)."""
     from scipy.interpolate import CubicHermiteSpline
 
-    step = walker.step(z0, record=True)
     nd = prob.n_dyn
-    states = step.states[:, :nd]
-    derivs = np.array([walker.rhs(x)[:nd] for x in step.states])
-    spline = CubicHermiteSpline(step.times, states, derivs, axis=0)
-    big_t = step.step_time
-    w = [np.array([big_t]), states[0]]
-    h = 1.0 / prob.n_int
-    for k in range(prob.n_int):
-        tc = (k + prob.tau) * h * big_t
-        w.append(spline(tc).T.ravel(order="F"))
-        w.append(spline(min((k + 1) * h * big_t, step.times[-1])))
+    w = []
+    for step in walker.cycle(z0, record=True).steps:
+        states = step.states[:, :nd]
+        derivs = np.array([walker.rhs(x, step.side)[:nd] for x in step.states])
+        spline = CubicHermiteSpline(step.times, states, derivs, axis=0)
+        big_t = step.step_time
+        w += [np.array([big_t]), states[0]]
+        h = 1.0 / prob.n_int
+        for k in range(prob.n_int):
+            tc = (k + prob.tau) * h * big_t
+            w.append(spline(tc).T.ravel(order="F"))
+            w.append(spline(min((k + 1) * h * big_t, step.times[-1])))
     return np.concatenate(w)
 
 
@@ -206,14 +234,18 @@ def solve_collocation(params: Params, z_guess: np.ndarray | None = None, planar:
     warm_start : CollocationGait, optional
         A neighbouring solution (same mesh) to start from instead of a simulation.
 
+    A walker whose effects break the mirror symmetry is solved over a stride (two steps, the left
+    leg in stance first, each with its own duration and mesh); the fixed point, Jacobian and
+    eigenvalues are then the stride map's, and ``step_time`` is half the stride's duration.
+
     Returns
     -------
     CollocationGait
         ``success`` False (with IPOPT's status) if it did not converge; never raises for that.
     """
-    prob = _problem(planar, n_intervals, degree)
     walker = Walker(params, planar=planar)
-    p = params.vector()
+    prob = _problem(planar, n_intervals, degree, walker.period)
+    p = params.input_vector()
     if warm_start is not None:
         w0, lam0 = warm_start.solution, warm_start.multipliers
     elif z_guess is not None:
@@ -232,16 +264,17 @@ def solve_collocation(params: Params, z_guess: np.ndarray | None = None, planar:
     nd = prob.n_dyn
     times, states = _trajectory(w, prob)
     x0 = w[1:1 + nd]
-    jac = _step_jacobian(w, p, prob, walker)
+    jac = _cycle_jacobian(w, p, prob, walker)
     vals = np.linalg.eigvals(jac[np.ix_(_active(planar), _active(planar))]) if planar else \
         np.linalg.eigvals(jac)
     if planar:
         vals = np.concatenate([vals, np.zeros(4)])
     order = np.argsort(-np.abs(vals), kind="stable")
     success = bool(stats["success"]) and max_res < 1e-8
+    durations = w[::prob.phase_size][:prob.phases]
     return CollocationGait(
         fixed_point=walker.to_public(np.concatenate([x0, np.zeros(walker.lay.nx - nd)])),
-        step_time=float(w[0]), success=success, status=str(stats["return_status"]),
+        step_time=float(np.mean(durations)), success=success, status=str(stats["return_status"]),
         max_residual=max_res, times=times, states=states, jacobian=jac, eigenvalues=vals[order],
         iterations=int(stats["iter_count"]), solution=w,
         multipliers=np.array(sol["lam_g"]).ravel())
@@ -252,45 +285,54 @@ def _active(planar: bool) -> list[int]:
 
 
 def _trajectory(w: np.ndarray, prob: _Problem) -> tuple[np.ndarray, np.ndarray]:
+    """Mesh and collocation times (s, from the start of the period) and the states there."""
     nd, d = prob.n_dyn, prob.degree
-    big_t = w[0]
-    h = big_t / prob.n_int
-    times, states = [0.0], [w[1:1 + nd]]
-    offset = 1 + nd
-    for k in range(prob.n_int):
-        xc = w[offset:offset + nd * d].reshape(d, nd)
-        offset += nd * d
-        times.extend((k + prob.tau) * h)
-        states.extend(xc)
-        times.append((k + 1) * h)
-        states.append(w[offset:offset + nd])
-        offset += nd
+    times, states = [], []
+    t0 = 0.0
+    for phase in range(prob.phases):
+        offset = phase * prob.phase_size
+        big_t = w[offset]
+        h = big_t / prob.n_int
+        times.append(t0)
+        states.append(w[offset + 1:offset + 1 + nd])
+        offset += 1 + nd
+        for k in range(prob.n_int):
+            xc = w[offset:offset + nd * d].reshape(d, nd)
+            offset += nd * d
+            times.extend(t0 + (k + prob.tau) * h)
+            states.extend(xc)
+            times.append(t0 + (k + 1) * h)
+            states.append(w[offset:offset + nd])
+            offset += nd
+        t0 += big_t
     return np.array(times), np.array(states)
 
 
-def _step_jacobian(w: np.ndarray, p: np.ndarray, prob: _Problem, walker: Walker) -> np.ndarray:
-    """dP/dz by the implicit-function theorem on the collocation and guard equations.
+def _cycle_jacobian(w: np.ndarray, p: np.ndarray, prob: _Problem, walker: Walker) -> np.ndarray:
+    """dP/dz by the implicit-function theorem on each step's collocation and guard equations.
 
-    Unknowns y = (T, interior states, end state), parameters x0. Equations: collocation and
-    continuity (all intervals) and the guard h(x_N) = 0. Then dP/dx0 = C_x(x_N) dx_N/dx0.
+    Per step: unknowns y = (T, interior states, end state), parameters x0; equations collocation
+    and continuity (all intervals) and the guard h(x_N) = 0; then the step's map is
+    C_x(x_N) dx_N/dx0, and a stride's is the product of its two steps'.
     """
-    nd = prob.n_dyn
     from scipy.sparse import csc_matrix
     from scipy.sparse.linalg import splu
 
+    nd, size, n_eq = prob.n_dyn, prob.phase_size, prob.phase_equations
     dg = prob.jac_fun(w, p)
     col_ptr, row_idx = (np.array(v) for v in dg.sparsity().get_ccs())
     jac = csc_matrix((np.array(dg.nonzeros()), row_idx, col_ptr), shape=dg.shape).tocsr()
-    n_coll = prob.n_int * nd * (prob.degree + 1)
-    rows = np.r_[np.arange(n_coll), n_coll + nd]  # collocation/continuity + guard h = 0
-    cols_x0 = np.arange(1, 1 + nd)
-    cols_y = np.r_[0, np.arange(1 + nd, len(w))]
-    a = jac[rows][:, cols_y].tocsc()
-    b = jac[rows][:, cols_x0].toarray()
-    dy = -splu(a).solve(b)
-    dxn = dy[-nd:]  # the end state is the last block of w
-    x_end = np.concatenate([w[-nd:], np.zeros(walker.lay.nx - nd)])
-    _, c_x, _ = walker.eng.k["collision_jac"](x_end, walker.p)
-    jac_int = c_x[:nd, :nd] @ dxn
-    return walker._jac_to_public(jac_int)
-
+    total = np.eye(nd)
+    for phase in range(prob.phases):
+        rows = np.arange(phase * n_eq, (phase + 1) * n_eq)
+        first = phase * size
+        cols_x0 = np.arange(first + 1, first + 1 + nd)
+        cols_y = np.r_[first, np.arange(first + 1 + nd, first + size)]
+        a = jac[rows][:, cols_y].tocsc()
+        b = jac[rows][:, cols_x0].toarray()
+        dxn = -splu(a).solve(b)[-nd:]  # the end state is the last block of the step's variables
+        x_end = np.concatenate([w[first + size - nd:first + size], np.zeros(walker.lay.nx - nd)])
+        side = 1 if phase % 2 == 0 else -1
+        _, c_x, _ = walker.eng.k["collision_jac"](x_end, walker.params.input_vector(side))
+        total = c_x[:nd, :nd] @ dxn @ total
+    return walker._jac_to_public(total)

@@ -42,6 +42,7 @@ class BranchPoint(Stability):
     stride_length: float
     eigenvalues: np.ndarray
     lean_amplitude: float
+    period: int = 1
 
 
 @dataclasses.dataclass
@@ -68,6 +69,9 @@ class Branch:
         message says where) or ``"max_points"``.
     message : str
     planar : bool
+    period : int
+        Steps of the map followed: 1 (step map) or 2 (stride map, for symmetry-breaking effects);
+        the eigenvalues are that map's.
     """
 
     name: str
@@ -76,6 +80,7 @@ class Branch:
     status: str
     message: str
     planar: bool
+    period: int = 1
 
     def table(self) -> tuple[list[str], np.ndarray]:
         """(column names, rows): value, step time, stride length, max|lambda|, stable, lean
@@ -90,8 +95,6 @@ class Branch:
 
 
 def _index(name: str) -> int:
-    if name.startswith("effects."):
-        raise ParameterError(f"continuation in effect parameters is not supported yet: {name!r}")
     if name not in PARAMETER_NAMES:
         raise ParameterError(f"cannot continue in {name!r}; parameters: {', '.join(PARAMETER_NAMES)}")
     return PARAMETER_NAMES.index(name)
@@ -100,7 +103,7 @@ def _index(name: str) -> int:
 def _point(gait: Gait, value: float) -> BranchPoint:
     return BranchPoint(value=value, fixed_point=gait.fixed_point.copy(), step_time=gait.step_time,
                        stride_length=gait.stride_length, eigenvalues=gait.eigenvalues.copy(),
-                       lean_amplitude=gait.lean_amplitude)
+                       lean_amplitude=gait.lean_amplitude, period=gait.period)
 
 
 def continue_branch(params: Params, name: str, start: float, end: float, max_points: int = 200,
@@ -126,15 +129,26 @@ def continue_branch(params: Params, name: str, start: float, end: float, max_poi
         A start near the first gait (default: :func:`find_gait`).
     planar : bool, optional
         Continue in the planar reduction (default: as the first gait is found).
+
+    The branch follows fixed points of the stride map (two steps) when the walker or the
+    continued parameter breaks the mirror symmetry (an effect such as ``effects.asymmetry``), so
+    that every point's eigenvalues belong to the same map; otherwise of the step map.
     """
+    from .effects import EFFECTS
+
     k = _index(name)
     if not (math.isfinite(start) and math.isfinite(end)) or start == end:
         raise ValueError(f"continuation needs two different finite values, got {start} and {end}")
     first_params = params.replace(**{name: start})
+    breaking = name.startswith("effects.") and EFFECTS[name.split(".", 1)[1]].breaks_symmetry
+    period = 2 if breaking or params.breaks_symmetry or first_params.breaks_symmetry else 1
     if z_start is None:
         gait = find_gait(first_params, planar=planar)
+        if gait.period != period:
+            gait = solve_fixed_point(Walker(first_params, planar=gait.planar, period=period),
+                                     gait.fixed_point)
     else:
-        gait = solve_fixed_point(Walker(first_params, planar=bool(planar)), z_start)
+        gait = solve_fixed_point(Walker(first_params, planar=bool(planar), period=period), z_start)
     planar = gait.planar
     active = [4, 5, 6, 7] if planar else list(range(8))
     na = len(active)
@@ -151,10 +165,10 @@ def continue_branch(params: Params, name: str, start: float, end: float, max_poi
 
     def residual(yv):
         value = yv[-1] * scale
-        walker = Walker(params.replace(**{name: value}), planar=planar)
+        walker = Walker(params.replace(**{name: value}), planar=planar, period=period)
         z = np.zeros(8)
         z[active] = yv[:na]
-        step = walker.step(z, params_jacobian=True)
+        step = walker.cycle(z, params_jacobian=True)
         f = (step.z_plus - z)[active]
         jac = np.zeros((na, na + 1))
         jac[:, :na] = step.jacobian[np.ix_(active, active)] - np.eye(na)
@@ -165,11 +179,12 @@ def continue_branch(params: Params, name: str, start: float, end: float, max_poi
         """The gait at ``name = value`` by Newton from a state given by its active components."""
         z = np.zeros(8)
         z[active] = active_state
-        return solve_fixed_point(Walker(params.replace(**{name: value}), planar=planar), z)
+        return solve_fixed_point(Walker(params.replace(**{name: value}), planar=planar,
+                                        period=period), z)
 
     def add_point(point):
         if points[-1].stable != point.stable:
-            events.append(_stability_event(params, name, points[-1], point, planar))
+            events.append(_stability_event(params, name, points[-1], point, planar, period))
         points.append(point)
 
     def null_vector(jac, previous):
@@ -246,11 +261,11 @@ def continue_branch(params: Params, name: str, start: float, end: float, max_poi
             break
     bar.close()
     return Branch(name=name, points=points, events=events, status=status, message=message,
-                  planar=planar)
+                  planar=planar, period=period)
 
 
 def _stability_event(params: Params, name: str, a: BranchPoint, b: BranchPoint,
-                     planar: bool) -> BranchEvent:
+                     planar: bool, period: int) -> BranchEvent:
     """Locate where max|lambda| = 1 between two points (secant on max|lambda| - 1)."""
     lo, hi = a, b
     for _ in range(30):
@@ -260,7 +275,7 @@ def _stability_event(params: Params, name: str, a: BranchPoint, b: BranchPoint,
         value = hi.value - fb * (hi.value - lo.value) / (fb - fa)
         if abs(hi.value - lo.value) < 1e-12 * max(1.0, abs(value)):
             break
-        w = Walker(params.replace(**{name: value}), planar=planar)
+        w = Walker(params.replace(**{name: value}), planar=planar, period=period)
         frac = (value - lo.value) / (hi.value - lo.value) if hi.value != lo.value else 0.5
         guess = lo.fixed_point + frac * (hi.fixed_point - lo.fixed_point)
         try:

@@ -20,7 +20,8 @@ import numpy as np
 from scipy.integrate._ivp import dop853_coefficients as _dop853
 
 from .compiled import compile_functions
-from .equations import N_PARAMS, build_functions, layout
+from .equations import build_functions, layout
+from .parameters import N_INPUT, view
 
 __all__ = ["CHUNKS", "SCAN", "Engine", "Kernel", "engine", "rk8_step"]
 
@@ -96,12 +97,14 @@ class Engine:
         The same, wrapped for fast calls.
     """
 
-    def __init__(self, planar: bool):
+    def __init__(self, planar: bool, effects: bool = True, compiled: bool = True):
         self.lay = layout(planar)
-        base = build_functions(planar)
+        self.effects = effects
+        base = build_functions(planar, effects)
         nx = self.lay.nx
         x = ca.MX.sym("x", nx)
-        p = ca.MX.sym("p", N_PARAMS)
+        p = ca.MX.sym("p", N_INPUT)
+        par = view(p)
         dt = ca.MX.sym("dt")
         rhs = base["rhs"]
         guard = base["guard"]
@@ -111,10 +114,11 @@ class Engine:
         # Fallen when a hip, the whole walker's centre of mass, or a leg's centre of mass (the
         # balance mass) reaches the ramp. A leg whose mass sits inside its foot (|G - O| <= r, as
         # for the simplest walker's point-mass feet) is exempt: that is the foot, not a fall.
-        m, mh = p[4], p[5]
+        m, mh = par.leg_mass, par.axle_mass
         com_z = (m * (sym[2, 7] + sym[2, 8]) + mh * sym[2, 3]) / (2 * m + mh)
-        foot_centre = ca.vertcat(0, 0, -(p[0] - p[1]))
-        in_foot = ca.norm_2(p[6:9] - foot_centre) <= p[1] + 1e-9 * p[0]
+        foot_centre = ca.vertcat(0, 0, -(par.leg_length - par.foot_radius))
+        in_foot = (ca.norm_2(par.com_offset - foot_centre)
+                   <= par.foot_radius + 1e-9 * par.leg_length)
         legs_z = ca.if_else(in_foot, ca.inf, ca.fmin(sym[2, 7], sym[2, 8]))
         low = ca.fmin(ca.fmin(ca.fmin(sym[2, 2], sym[2, 4]), com_z), legs_z)
         probe = ca.Function("probe", [x, p], [ca.vertcat(guard(x, p), low)], ["x", "p"], ["g"])
@@ -145,8 +149,20 @@ class Engine:
             "collision_jac", [x, p], [xp, ca.jacobian(xp, x), ca.jacobian(xp, p)],
             ["x", "p"], ["x_plus", "C_x", "C_p"],
         )
+        # The energy each continuous effect dissipates over one integration step: the same
+        # Runge-Kutta step of the system augmented with W' = D(x), so that E(t) - E(0) + W(t)
+        # vanishes to the integrator's accuracy (model.md section 6's energy accounting).
+        n_diss = base["dissipation"].size1_out(0)
+        xw = ca.MX.sym("xw", nx + n_diss)
+        rhs_aug = ca.Function("rhs_aug", [xw, p], [ca.vertcat(rhs(xw[:nx], p),
+                                                              base["dissipation"](xw[:nx], p))])
+        dissipated = rk8_step(rhs_aug, ca.vertcat(x, ca.MX.zeros(n_diss)), dt, p)[nx:]
+        dissipation_step = ca.Function("dissipation_step", [x, dt, p], [dissipated],
+                                       ["x", "dt", "p"], ["W"])
         fns = {
             "rhs": rhs, "energy": base["energy"], "guard": guard, "collision": base["collision"],
+            "impact": base["impact"], "dissipation": base["dissipation"],
+            "dissipation_step": dissipation_step,
             "points": base["points"], "momenta": base["momenta"], "mass_matrix": base["mass_matrix"],
             "step": step, "probe": probe, "scan": scan, "final": final, "final_jac": final_jac,
             "guard_jac": guard_jac, "collision_jac": collision_jac,
@@ -161,20 +177,21 @@ class Engine:
                 f"chunkp{n}", [x, dt, p], [xe, ca.jacobian(xe, x), ca.jacobian(xe, p)],
                 ["x", "dt", "p"], ["x_end", "A", "B"],
             )
-        tag = "planar" if planar else "walker3d"
-        self.fns = compile_functions(tag, {name: _dense(fn) for name, fn in fns.items()})
+        tag = ("planar" if planar else "walker3d") + ("" if effects else "-seed")
+        dense = {name: _dense(fn) for name, fn in fns.items()}
+        self.fns = compile_functions(tag, dense) if compiled else dense
         self.k = {name: Kernel(fn) for name, fn in self.fns.items()}
 
     def chunk_jacobian(self, x0: np.ndarray, n_steps: int, dt: float, p: np.ndarray,
                        params: bool = False):
         """State after ``n_steps`` steps of size dt and its Jacobians wrt x0 (and p).
 
-        Returns ``(x_n, A, B)``: shapes (nx,), (nx, nx), (nx, n_p); B is None unless ``params``.
+        Returns ``(x_n, A, B)``: shapes (nx,), (nx, nx), (nx, N_INPUT); B is None unless ``params``.
         """
         nx = self.lay.nx
         x = np.array(x0, dtype=float)
         a_tot = np.eye(nx)
-        b_tot = np.zeros((nx, N_PARAMS)) if params else None
+        b_tot = np.zeros((nx, N_INPUT)) if params else None
         remaining = n_steps
         for n in sorted(CHUNKS, reverse=True):
             while remaining >= n:
@@ -199,6 +216,10 @@ def _dense(fn: ca.Function) -> ca.Function:
 
 
 @cache
-def engine(planar: bool) -> Engine:
-    """The (cached) compiled :class:`Engine` of the 3D or planar system."""
-    return Engine(planar)
+def engine(planar: bool, effects: bool = True, compiled: bool = True) -> Engine:
+    """The (cached) :class:`Engine` of the 3D or planar system.
+
+    ``effects=False`` gives the seed's model alone (same inputs; benchmarks and null checks);
+    ``compiled=False`` runs in CasADi's virtual machine (no compile).
+    """
+    return Engine(planar, effects, compiled)

@@ -1,8 +1,11 @@
 """Symbolic kinematics, equations of motion, energy, guard and collision of the 3D walker.
 
 Everything is derived once, symbolically, in CasADi SX (model.md sections 1-4), with every physical
-quantity a symbolic input (the parameter vector of :data:`toywalk.model.parameters.PARAMETER_NAMES`),
-so that one compiled function serves every parameter set and foot shape.
+quantity a symbolic input (the parameter input of :data:`toywalk.model.parameters.INPUT_NAMES`:
+the parameter vector with every effect's strength, and the side in stance), so that one compiled
+function serves every parameter set, foot shape and combination of effects. Each effect of
+:mod:`toywalk.model.effects` contributes its own terms through its hooks; ``effects=False`` builds
+the seed's model alone (for the benchmarks and the null checks), with the same inputs.
 
 Conventions (model.md section 1): slope frame S with x downhill, y left, z along the ramp normal;
 stance-leg orientation ``Rz(phi) Rx(psi) Ry(theta_st)``, swing leg ``Rz(phi) Rx(psi) Ry(theta_sw)``.
@@ -29,11 +32,10 @@ from functools import cache
 
 import casadi as ca
 
-from .parameters import PARAMETER_NAMES
+from .effects import CONTINUOUS, EFFECTS, Context
+from .parameters import N_INPUT, view
 
 __all__ = ["Layout", "Symbolic", "build_functions", "layout", "symbolic"]
-
-N_PARAMS = len(PARAMETER_NAMES)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -104,16 +106,16 @@ class Symbolic:
     u: ca.SX
     p: ca.SX
     exprs: dict[str, ca.SX]
+    ctx: Context
+    effects: bool
 
 
-def _geometry(q4: ca.SX, p: ca.SX) -> dict[str, ca.SX]:
-    """Positions of the walker's points relative to the stance contact C, and orientations.
-
-    ``q4 = (phi, psi, theta_st, theta_sw)`` (possibly with constant zeros for the planar system).
-    """
-    phi, psi, th1, th2 = (q4[k] for k in range(4))
-    l, r, rho, w, m, mh = (p[k] for k in range(6))
-    d = p[6:9]
+def _geometry(ctx: Context, effects: bool) -> dict[str, ca.SX]:
+    """Positions of the walker's points relative to the stance contact C, and orientations."""
+    phi, psi, th1, th2 = (ctx.q4[k] for k in range(4))
+    par = ctx.params
+    l, r, rho, w = par.leg_length, par.foot_radius, par.foot_lateral_radius, par.hip_width
+    d = par.com_offset
     ez = ca.SX([0, 0, 1])
     ey = ca.SX([0, 1, 0])
     rzx = ca.mtimes(_rz(phi), _rx(psi))
@@ -129,12 +131,19 @@ def _geometry(q4: ca.SX, p: ca.SX) -> dict[str, ca.SX]:
     h1 = o_c + (l - r) * r1[:, 2]  # stance (left) hip point
     h2 = h1 - w * n  # swing (right) hip point
     axle = h1 - 0.5 * w * n
-    d_right = ca.vertcat(d[0], -d[1], d[2])
-    g1 = h1 + ca.mtimes(r1, d)
-    g2 = h2 + ca.mtimes(r2, d_right)
+    d_st, d_sw = d, ca.vertcat(d[0], -d[1], d[2])  # the swing leg is the mirror image
+    for effect in _effects(effects):
+        d_st, d_sw = effect.com_offsets(par.effects[effect.name], ctx, d_st, d_sw)
+    g1 = h1 + ca.mtimes(r1, d_st)
+    g2 = h2 + ca.mtimes(r2, d_sw)
     o2 = h2 - (l - r) * r2[:, 2]
     c2 = o2 - o_c  # swing foot's lowest point (its contact point when it lands)
     return dict(r1=r1, r2=r2, n=n, t=t, o1=o_c, h1=h1, h2=h2, axle=axle, g1=g1, g2=g2, o2=o2, c2=c2)
+
+
+def _effects(effects: bool):
+    """The effect units the builder includes (all, or none for the seed's model)."""
+    return tuple(EFFECTS.values()) if effects else ()
 
 
 def _omegas(q4: ca.SX, u4: ca.SX) -> tuple[ca.SX, ca.SX]:
@@ -156,20 +165,32 @@ def _embed(lay: Layout, q: ca.SX) -> ca.SX:
 
 
 @cache
-def symbolic(planar: bool) -> Symbolic:
-    """Build (once) the symbolic expressions of the 3D or planar system."""
+def symbolic(planar: bool, effects: bool = True) -> Symbolic:
+    """Build (once) the symbolic expressions of the 3D or planar system.
+
+    Parameters
+    ----------
+    planar : bool
+        The planar reduction.
+    effects : bool
+        Include the effect library's terms (False: the seed's model, same inputs).
+    """
     lay = layout(planar)
     q = ca.SX.sym("q", lay.nq)
     u = ca.SX.sym("u", lay.nq)
-    p = ca.SX.sym("p", N_PARAMS)
+    p = ca.SX.sym("p", N_INPUT)
+    par = view(p)
     q4, u4 = _embed(lay, q), _embed(lay, u)
-    geo = _geometry(q4, p)
-    l, r, rho, w, m, mh = (p[k] for k in range(6))
-    del l, w
-    inertia = p[9:15]
-    alpha, grav = p[15], p[16]
+    ctx = Context(planar=planar, params=par, side=par.side, q4=q4, u4=u4)
+    geo = _geometry(ctx, effects)
+    ctx.n = geo["n"]
+    r, rho, m, mh = par.foot_radius, par.foot_lateral_radius, par.leg_mass, par.axle_mass
+    alpha, grav = par.slope, par.gravity
     gvec = grav * ca.vertcat(ca.sin(alpha), 0, -ca.cos(alpha))
+    for effect in _effects(effects):
+        gvec = effect.gravity(par.effects[effect.name], ctx, gvec)
     w1, w2 = _omegas(q4, u4)
+    ctx.w1, ctx.w2 = w1, w2
 
     # Velocities: stance-leg material points rotate about the contact point (rolling, no slip);
     # swing-leg points move with the hip plus the swing leg's rotation about it.
@@ -177,10 +198,10 @@ def symbolic(planar: bool) -> Symbolic:
     v_g1 = ca.cross(w1, geo["g1"])
     v_axle = ca.cross(w1, geo["axle"])
     v_g2 = v_h2 + ca.cross(w2, geo["g2"] - geo["h2"])
-    i1 = ca.mtimes(ca.mtimes(geo["r1"], _inertia_matrix(inertia, False)), geo["r1"].T)
-    i2 = ca.mtimes(ca.mtimes(geo["r2"], _inertia_matrix(inertia, True)), geo["r2"].T)
+    i1 = ca.mtimes(ca.mtimes(geo["r1"], _inertia_matrix(par.inertia, False)), geo["r1"].T)
+    i2 = ca.mtimes(ca.mtimes(geo["r2"], _inertia_matrix(par.inertia, True)), geo["r2"].T)
 
-    # Kane's equations: sum_i J_i^T m_i (a_i - g) + W_i^T (I_i alpha_i + w_i x I_i w_i) = 0,
+    # Kane's equations: sum_i J_i^T m_i (a_i - g) + W_i^T (I_i alpha_i + w_i x I_i w_i) = Q,
     # with a_i = J_i du/dt + (d(J_i u)/dq) u, since dq/dt = u.
     mass_matrix = ca.SX.zeros(lay.nq, lay.nq)
     forcing = ca.SX.zeros(lay.nq, 1)
@@ -197,6 +218,21 @@ def symbolic(planar: bool) -> Symbolic:
     # The world-frame inertia I_i(q) changes with q; Kane's inertia torque uses d(I w)/dt =
     # I alpha + w x I w, which already accounts for that (body-fixed principal axes rotate with w).
 
+    # Effects' couples: generalised forces by virtual work, Q = sum_legs W_leg^T M_leg, and each
+    # continuous effect's dissipated power -sum_legs M_leg . omega_leg (one entry per CONTINUOUS).
+    omegas = {1: w1, 2: w2}
+    partials = {leg: ca.jacobian(omega, u) for leg, omega in omegas.items()}
+    generalised = ca.SX.zeros(lay.nq, 1)
+    dissipation = []
+    for name in CONTINUOUS:
+        power = ca.SX(0)
+        if effects:
+            for leg, couple in EFFECTS[name].couples(par.effects[name], ctx):
+                generalised += ca.mtimes(partials[leg].T, couple)
+                power -= ca.dot(couple, omegas[leg])
+        dissipation.append(power)
+    forcing += generalised
+
     # Contact-point travel on the ramp: dC/dt = v_O + (C - O)' with v_O = w1 x (O - C).
     big_r = r - rho
     c_minus_o = big_r * geo["t"] - rho * ca.SX([0, 0, 1])
@@ -210,6 +246,8 @@ def symbolic(planar: bool) -> Symbolic:
     exprs = dict(
         mass_matrix=mass_matrix,
         forcing=forcing,
+        generalised=generalised,
+        dissipation=ca.vertcat(*dissipation) if dissipation else ca.SX.zeros(0, 1),
         c_dot=c_dot,
         kinetic=kinetic,
         potential_rel=potential_rel,
@@ -223,55 +261,112 @@ def symbolic(planar: bool) -> Symbolic:
         i2=i2,
         **geo,
     )
-    return Symbolic(lay=lay, q=q, u=u, p=p, exprs=exprs)
+    return Symbolic(lay=lay, q=q, u=u, p=p, exprs=exprs, ctx=ctx, effects=effects)
 
 
-def _collision_exprs(sym: Symbolic) -> tuple[ca.SX, ca.SX]:
-    """Post-collision speeds (old labels) as an expression of the pre-collision state.
+def _collision_exprs(sym: Symbolic) -> dict[str, ca.SX]:
+    """Post-collision speeds (old labels) and the impact's energy change and normal impulses.
 
     Unknowns u+ with the old swing leg (leg 2) rolling about D = c2. Conserved (seed eqs. 3-4):
     (a) the whole system's angular momentum about D, (b) the old stance leg's angular momentum about
     the hip axis through its hip point H1, both with absolute velocities. The planar system keeps
-    the n-component of (a). Returns ``(u_plus, residuals_function_inputs)``.
-    """
-    lay, q, p, e = sym.lay, sym.q, sym.p, sym.exprs
-    m, mh = p[4], p[5]
-    q4 = _embed(lay, q)
-    up = ca.SX.sym("u_plus", lay.nq)
-    w1p, w2p = _omegas(q4, _embed(lay, up))
-    d = e["c2"]
-    # After: leg 2 rolls about D; its hip H2 and the axle move with it; leg 1 swings about H1.
-    v_g2p = ca.cross(w2p, e["g2"] - d)
-    v_axlep = ca.cross(w2p, e["axle"] - d)
-    v_h1p = ca.cross(w2p, e["h1"] - d)
-    v_g1p = v_h1p + ca.cross(w1p, e["g1"] - e["h1"])
+    the n-component of (a). Effects of the collision law add, to the same linear equations, a
+    normal impulse ``lambda_C e_z`` at the trailing foot C (a share of the total normal impulse,
+    itself linear in u+), and blend with the law that also arrests a rate of the landing leg
+    (:class:`toywalk.model.effects.Arrest`).
 
-    def total_momentum(vg1, vg2, va, w1, w2):
+    Returns a dict: ``u_plus``; ``residual`` (the jump conditions as a function of ``up``, the
+    symbol of trial post-collision speeds, with the effects' trailing impulse); ``up``;
+    ``energy_change`` (J, kinetic energy after minus before); ``normal_impulses`` (N s, shape (2,):
+    at the landing foot D and at the trailing foot C, along the ramp normal).
+    """
+    lay, q, e, ctx = sym.lay, sym.q, sym.exprs, sym.ctx
+    par = ctx.params
+    m, mh = par.leg_mass, par.axle_mass
+    q4 = _embed(lay, q)
+    ez = ca.SX([0, 0, 1])
+    up = ca.SX.sym("u_plus", lay.nq)
+    d = e["c2"]
+
+    def velocities(u_trial):
+        """After: leg 2 rolls about D; its hip H2 and the axle move with it; leg 1 swings about H1."""
+        w1p, w2p = _omegas(q4, _embed(lay, u_trial))
+        v_h1p = ca.cross(w2p, e["h1"] - d)
+        return dict(v_g1=v_h1p + ca.cross(w1p, e["g1"] - e["h1"]), v_g2=ca.cross(w2p, e["g2"] - d),
+                    v_axle=ca.cross(w2p, e["axle"] - d), w1=w1p, w2=w2p)
+
+    def total_momentum(v):
         return (
-            ca.cross(e["g1"] - d, m * vg1)
-            + ca.cross(e["g2"] - d, m * vg2)
-            + ca.cross(e["axle"] - d, mh * va)
-            + ca.mtimes(e["i1"], w1)
-            + ca.mtimes(e["i2"], w2)
+            ca.cross(e["g1"] - d, m * v["v_g1"])
+            + ca.cross(e["g2"] - d, m * v["v_g2"])
+            + ca.cross(e["axle"] - d, mh * v["v_axle"])
+            + ca.mtimes(e["i1"], v["w1"])
+            + ca.mtimes(e["i2"], v["w2"])
         )
 
-    def leg1_hip_momentum(vg1, w1):
-        return ca.dot(e["n"], ca.cross(e["g1"] - e["h1"], m * vg1) + ca.mtimes(e["i1"], w1))
+    def leg1_hip_momentum(v):
+        return ca.dot(e["n"], ca.cross(e["g1"] - e["h1"], m * v["v_g1"]) + ca.mtimes(e["i1"], v["w1"]))
 
-    before_total = total_momentum(e["v_g1"], e["v_g2"], e["v_axle"], e["w1"], e["w2"])
-    after_total = total_momentum(v_g1p, v_g2p, v_axlep, w1p, w2p)
-    if lay.planar:
-        before_total = ca.dot(e["n"], before_total)
-        after_total = ca.dot(e["n"], after_total)
-    residual = ca.vertcat(
-        after_total - before_total,
-        leg1_hip_momentum(v_g1p, w1p) - leg1_hip_momentum(e["v_g1"], e["w1"]),
-    )
-    # residual = A(q) u+ - b(q, u): linear in u+.
-    a_mat = ca.jacobian(residual, up)
-    b_vec = -ca.substitute(residual, up, ca.SX.zeros(lay.nq))
+    def linear_momentum(v):
+        return m * v["v_g1"] + m * v["v_g2"] + mh * v["v_axle"]
+
+    def kinetic(v):
+        return 0.5 * (m * ca.dot(v["v_g1"], v["v_g1"]) + m * ca.dot(v["v_g2"], v["v_g2"])
+                      + mh * ca.dot(v["v_axle"], v["v_axle"]) + ca.dot(v["w1"], ca.mtimes(e["i1"], v["w1"]))
+                      + ca.dot(v["w2"], ca.mtimes(e["i2"], v["w2"])))
+
+    before = dict(v_g1=e["v_g1"], v_g2=e["v_g2"], v_axle=e["v_axle"], w1=e["w1"], w2=e["w2"])
+    after = velocities(up)
+    # The total normal impulse is the jump of the normal linear momentum (gravity is finite).
+    normal_total = ca.dot(ez, linear_momentum(after) - linear_momentum(before))
+    share = ca.SX(0)
+    arrests = []
+    for effect in _effects(sym.effects):
+        k = par.effects[effect.name]
+        extra = effect.trailing_impulse(k, ctx)
+        if extra is not None:
+            share += extra
+        arrest = effect.arrest(k, ctx)
+        if arrest is not None:
+            arrests.append(arrest)
+    if len(arrests) > 1:
+        raise ValueError("the collision law takes at most one arresting effect")
+
+    def jump_conditions(trailing_share):
+        """The jump conditions, linear in u+: residual = A(q) u+ - b(q, u)."""
+        lam_c = trailing_share * normal_total  # the trailing foot's normal impulse at C (origin)
+        # Angular impulses of lambda_C e_z at C = 0: about D, and about the hip axis through H1.
+        jump_total = total_momentum(after) - total_momentum(before) - ca.cross(-d, ez) * lam_c
+        jump_hip = (leg1_hip_momentum(after) - leg1_hip_momentum(before)
+                    - ca.dot(e["n"], ca.cross(-e["h1"], ez)) * lam_c)
+        if lay.planar:
+            jump_total = ca.dot(e["n"], jump_total)
+        residual = ca.vertcat(jump_total, jump_hip)
+        return residual, ca.jacobian(residual, up), -ca.substitute(residual, up, ca.SX.zeros(lay.nq))
+
+    residual, a_mat, b_vec = jump_conditions(share)
     u_plus = ca.solve(a_mat, b_vec)
-    return u_plus, residual, up
+    normal = ca.substitute(normal_total, up, u_plus)
+    lead, trail = (1 - share) * normal, share * normal
+    for arrest in arrests:
+        # The law that also arrests a rate of the landing leg, the landing foot's patch taking the
+        # whole impulse (no trailing share): an impulsive couple mu * axis on the landing leg (in
+        # the whole walker's angular momentum about D, not the trailing leg's) and
+        # axis . omega_2+ = 0. A plastic projection (Carnot), so its blends with an admissible law
+        # never gain energy (kinetic energy is convex in the rates); impulses blend alike.
+        _, a_plain, b_plain = jump_conditions(0)
+        row = ca.jacobian(ca.dot(arrest.axis, after["w2"]), up)
+        column = ca.vertcat(-arrest.axis, 0)
+        kkt = ca.vertcat(ca.horzcat(a_plain, column), ca.horzcat(row, ca.SX.zeros(1, 1)))
+        arrested = ca.solve(kkt, ca.vertcat(b_plain, 0))[:lay.nq]
+        k = arrest.strength
+        u_plus = u_plus + k * (arrested - u_plus)
+        lead = (1 - k) * lead + k * ca.substitute(normal_total, up, arrested)
+        trail = (1 - k) * trail
+    final = velocities(u_plus)
+    return dict(u_plus=u_plus, residual=residual, up=up,
+                energy_change=kinetic(final) - kinetic(before),
+                normal_impulses=ca.vertcat(lead, trail))
 
 
 def _mirror_relabel(lay: Layout, q: ca.SX, u_plus: ca.SX) -> ca.SX:
@@ -282,21 +377,26 @@ def _mirror_relabel(lay: Layout, q: ca.SX, u_plus: ca.SX) -> ca.SX:
 
 
 @cache
-def build_functions(planar: bool) -> dict[str, ca.Function]:
+def build_functions(planar: bool, effects: bool = True) -> dict[str, ca.Function]:
     """Uncompiled CasADi functions of one system (3D or planar), all with inputs ``(x, p)``.
 
+    ``p`` is the parameter input (:meth:`toywalk.model.parameters.Params.input_vector`).
     Returns a dict of ``ca.Function`` by name:
 
     - ``rhs(x, p) -> xdot`` : shape (nx,), the state derivative (q', u', contact travel rates).
     - ``energy(x, p) -> E`` : kinetic + gravitational (J), potential including the contact travel.
+    - ``dissipation(x, p) -> D`` : shape (n_continuous,), the power (W) each continuous effect
+      dissipates (:data:`toywalk.model.effects.CONTINUOUS` order); dE/dt = -sum(D).
     - ``guard(x, p) -> (h, ahead)`` : swing foot's lowest-point height over the ramp (m) and its
       distance ahead of the stance contact along the heading (m).
     - ``collision(x, p) -> x_plus`` : impact, relabel and mirror; the contact travel is set to the
       new contact point (in the old frame; the caller handles frames).
+    - ``impact(x, p) -> (dK, lambda)`` : the collision's kinetic-energy change (J) and the normal
+      impulses at the landing and trailing feet (N s).
     - ``momenta(x, u_plus, p) -> residual`` : the conservation residuals of the collision law.
     - ``points(x, p) -> P`` : shape (3, 9), the walker's points relative to C (drawing, checks).
     """
-    sym = symbolic(planar)
+    sym = symbolic(planar, effects)
     lay, q, u, p, e = sym.lay, sym.q, sym.u, sym.p, sym.exprs
     travel = ca.SX.sym("travel", lay.nx - lay.n_dyn)
     x = ca.vertcat(q, u, travel)
@@ -305,13 +405,13 @@ def build_functions(planar: bool) -> dict[str, ca.Function]:
     xdot = ca.vertcat(u, udot, c_dot)
     gvec = e["gvec"]
     c_abs = ca.vertcat(travel[0], 0 if planar else travel[1], 0)
-    total_mass = 2 * p[4] + p[5]
+    total_mass = 2 * sym.ctx.params.leg_mass + sym.ctx.params.axle_mass
     energy = e["kinetic"] + e["potential_rel"] - total_mass * ca.dot(gvec, c_abs)
     phi = 0 if planar else q[0]
     heading = ca.vertcat(ca.cos(phi), ca.sin(phi), 0)
     guard = ca.vertcat(e["c2"][2], ca.dot(heading, e["c2"]))
-    u_plus, residual, up = _collision_exprs(sym)
-    new_dyn = _mirror_relabel(lay, q, u_plus)
+    coll = _collision_exprs(sym)
+    new_dyn = _mirror_relabel(lay, q, coll["u_plus"])
     c2xy = e["c2"][0] if planar else e["c2"][:2]
     x_plus = ca.vertcat(new_dyn, travel + c2xy)
     points = ca.horzcat(
@@ -321,14 +421,18 @@ def build_functions(planar: bool) -> dict[str, ca.Function]:
     fns = {
         "rhs": ca.Function("rhs", [x, p], [xdot], ["x", "p"], ["xdot"], opts),
         "energy": ca.Function("energy", [x, p], [energy], ["x", "p"], ["energy"], opts),
+        "dissipation": ca.Function("dissipation", [x, p], [e["dissipation"]], ["x", "p"], ["D"], opts),
         "guard": ca.Function("guard", [x, p], [guard], ["x", "p"], ["guard"], opts),
         "collision": ca.Function("collision", [x, p], [x_plus], ["x", "p"], ["x_plus"], opts),
+        "impact": ca.Function("impact", [x, p], [coll["energy_change"], coll["normal_impulses"]],
+                              ["x", "p"], ["dK", "lambda"], opts),
         "momenta": ca.Function(
-            "momenta", [x, up, p], [residual], ["x", "u_plus", "p"], ["residual"], opts
+            "momenta", [x, coll["up"], p], [coll["residual"]], ["x", "u_plus", "p"], ["residual"], opts
         ),
         "points": ca.Function("points", [x, p], [points], ["x", "p"], ["points"], opts),
         "mass_matrix": ca.Function(
             "mass_matrix", [x, p], [e["mass_matrix"], e["forcing"]], ["x", "p"], ["M", "f"], opts
         ),
+        "generalised": ca.Function("generalised", [x, p], [e["generalised"]], ["x", "p"], ["Q"], opts),
     }
     return fns

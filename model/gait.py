@@ -9,6 +9,10 @@ s in [0, 1] from the planar-symmetric walker (s = 0) to the requested one (s = 1
 
 Stability: eigenvalues of dP/dz at the fixed point (the stride map P o P has their squares). One
 eigenvalue is 0 because the state after a collision lies on the guard surface.
+
+A walker whose effects break the mirror symmetry (:attr:`Params.breaks_symmetry`) has no
+step-periodic gait: its gaits are fixed points of the stride map P_R o P_L (left leg in stance
+first), and their eigenvalues are the stride map's (:meth:`Walker.cycle`).
 """
 
 from __future__ import annotations
@@ -52,7 +56,7 @@ class Stability:
 
 @dataclasses.dataclass
 class Gait(Stability):
-    """A symmetric period-one gait and its stability.
+    """A gait (a fixed point of :meth:`Walker.cycle`) and its stability.
 
     Attributes
     ----------
@@ -65,8 +69,11 @@ class Gait(Stability):
         (s)
     step : Step
         The step from the fixed point, with its Jacobian and recorded trajectory.
+    steps : list of Step
+        The steps of one period (one, or two for a stride-periodic gait), recorded.
     eigenvalues : ndarray, shape (8,), complex
-        Step-map eigenvalues, sorted by decreasing modulus (planar: the four lateral ones are 0).
+        Eigenvalues of the period map (the step map, or the stride map of a stride-periodic gait),
+        sorted by decreasing modulus (planar: the four lateral ones are 0).
     eigenvectors : ndarray, shape (8, 8), complex
         Columns matching ``eigenvalues``.
     residual : float
@@ -86,35 +93,55 @@ class Gait(Stability):
     residual: float
     iterations: int
     status: str = "converged"
+    steps: list = dataclasses.field(default_factory=list)
+
+    @property
+    def period(self) -> int:
+        """Steps per period: 1 (step-periodic) or 2 (stride-periodic)."""
+        return len(self.steps)
 
     def growth_factor(self, n_steps: int) -> float:
-        """|lambda_max|^n: how much the worst perturbation grows over n steps."""
-        return self.max_abs_eigenvalue**n_steps
+        """How much the worst perturbation grows over n steps: |lambda_max|^(n / period)."""
+        return self.max_abs_eigenvalue ** (n_steps / self.period)
+
+    @property
+    def stride_displacement(self) -> np.ndarray:
+        """Advance of the contact per stride (two steps), shape (2,) (m, ramp frame): along the
+        fall line and sideways (to the left); the sideways part is the drift of a turning gait."""
+        if self.period == 2:
+            return self.steps[0].contact + self.steps[1].contact * [1.0, -1.0]
+        return np.array([2.0 * self.step.contact[0], 0.0])
 
     @property
     def stride_length(self) -> float:
         """Advance per stride (two steps) along the ramp's fall line (m)."""
-        return 2.0 * float(self.step.contact[0])
+        return float(self.stride_displacement[0])
 
     @property
     def stride_time(self) -> float:
         return 2.0 * self.step_time
 
     @property
+    def heading(self) -> float:
+        """The direction of travel over a stride, from the fall line towards the left (rad)."""
+        dx, dy = self.stride_displacement
+        return float(np.arctan2(dy, dx))
+
+    @property
     def lean_amplitude(self) -> float:
-        """max |psi| over the step (rad)."""
+        """max |psi| over the period (rad)."""
         return float(np.max(np.abs(self._series("psi"))))
 
     @property
     def steer_amplitude(self) -> float:
-        """max |phi| over the step (rad)."""
+        """max |phi| over the period (rad)."""
         return float(np.max(np.abs(self._series("phi"))))
 
     def _series(self, name: str) -> np.ndarray:
         if self.planar:
             return np.zeros(1)
         index = {"phi": 0, "psi": 1}[name]
-        return self.step.states[:, index]
+        return np.concatenate([s.states[:, index] for s in self.steps])
 
     def dominant_components(self, k: int, n: int = 2) -> list[tuple[str, float]]:
         """The ``n`` state components with the largest share of eigenvector ``k`` (name, share).
@@ -132,33 +159,41 @@ class Gait(Stability):
         return {
             "status": self.status,
             "planar": self.planar,
+            "map": "step" if self.period == 1 else "stride",
+            "period_steps": self.period,
             "step_time": self.step_time,
+            "step_times": [s.step_time for s in self.steps],
             "stride_time": self.stride_time,
             "stride_length": self.stride_length,
+            "stride_drift": float(self.stride_displacement[1]),
+            "heading": self.heading,
             "fixed_point": dict(zip(STATE_NAMES, map(float, self.fixed_point), strict=True)),
             "eigenvalues": [
                 {"re": float(e.real), "im": float(e.imag), "abs": float(abs(e)),
                  "dominant": [c for c, _ in self.dominant_components(i)]}
                 for i, e in enumerate(self.eigenvalues)
             ],
-            "stride_eigenvalues": [{"re": float((e * e).real), "im": float((e * e).imag)}
+            "stride_eigenvalues": [{"re": float((e**(2 // self.period)).real),
+                                    "im": float((e**(2 // self.period)).imag)}
                                    for e in self.eigenvalues],
             "max_abs_eigenvalue": self.max_abs_eigenvalue,
             "stable": self.stable,
             "growth_factor_20_steps": self.growth_factor(20),
             "lean_amplitude": self.lean_amplitude,
             "steer_amplitude": self.steer_amplitude,
-            "scuffs": self.step.scuffs,
-            "clearance": self.step.clearance,
+            "scuffs": sum(s.scuffs for s in self.steps),
+            "clearance": min(s.clearance for s in self.steps),
+            "collision_loss": [s.collision_loss for s in self.steps],
             "residual": self.residual,
             "iterations": self.iterations,
         }
 
 
 def planar_reduction(params: Params) -> Params:
-    """The planar-symmetric walker nearest to ``params``: d_y = I_xy = I_yz = 0, w = 0."""
-    return params.replace(**{"com_offset[1]": 0.0, "inertia[3]": 0.0, "inertia[5]": 0.0,
-                             "hip_width": 0.0})
+    """The planar-symmetric walker nearest to ``params``: d_y = I_xy = I_yz = 0, w = 0, and the
+    symmetry-breaking effects at null."""
+    return _symmetric_part(params).replace(**{"com_offset[1]": 0.0, "inertia[3]": 0.0,
+                                              "inertia[5]": 0.0, "hip_width": 0.0})
 
 
 def solve_fixed_point(walker: Walker, z0: np.ndarray, tol: float = _NEWTON_TOL,
@@ -176,7 +211,7 @@ def solve_fixed_point(walker: Walker, z0: np.ndarray, tol: float = _NEWTON_TOL,
     if walker.planar:
         z[:4] = 0.0
     try:
-        step = walker.step(z, jacobian=True)
+        step = walker.cycle(z, jacobian=True)
     except StepFailure as err:
         raise GaitNotFound(f"the starting state does not complete a step ({err.status}: {err})") from err
     res = (step.z_plus - z)[active]
@@ -193,7 +228,7 @@ def solve_fixed_point(walker: Walker, z0: np.ndarray, tol: float = _NEWTON_TOL,
             polished = z.copy()
             polished[active] += dz
             try:
-                s_pol = walker.step(polished)
+                s_pol = walker.cycle(polished)
                 if np.max(np.abs((s_pol.z_plus - polished)[active] / scale[active])) < norm:
                     z = polished
             except StepFailure:
@@ -204,7 +239,7 @@ def solve_fixed_point(walker: Walker, z0: np.ndarray, tol: float = _NEWTON_TOL,
             trial = z.copy()
             trial[active] += lam * dz
             try:
-                s_trial = walker.step(trial, jacobian=True)
+                s_trial = walker.cycle(trial, jacobian=True)
             except StepFailure:
                 lam *= 0.5
                 continue
@@ -227,7 +262,7 @@ def _state_scale(params: Params) -> np.ndarray:
 
 
 def _make_gait(walker: Walker, z: np.ndarray, iterations: int) -> Gait:
-    step = walker.step(z, jacobian=True, record=True)
+    step = walker.cycle(z, jacobian=True, record=True)
     active = [4, 5, 6, 7] if walker.planar else list(range(8))
     jac = step.jacobian
     vals, vecs = np.linalg.eig(jac)
@@ -240,8 +275,9 @@ def _make_gait(walker: Walker, z: np.ndarray, iterations: int) -> Gait:
     order = np.argsort(-np.abs(vals), kind="stable")
     residual = float(np.max(np.abs(step.z_plus - z)))
     return Gait(params=walker.params, planar=walker.planar, fixed_point=z.copy(),
-                step_time=step.step_time, step=step, eigenvalues=vals[order],
-                eigenvectors=vecs[:, order], residual=residual, iterations=iterations)
+                step_time=step.time / walker.period, step=step.steps[0], eigenvalues=vals[order],
+                eigenvectors=vecs[:, order], residual=residual, iterations=iterations,
+                steps=step.steps)
 
 
 def _planar_starts(params: Params):
@@ -327,6 +363,19 @@ def find_gait(params: Params, z_guess: np.ndarray | None = None, planar: bool | 
     walker = Walker(params, planar=planar, steps_per_time_unit=steps_per_time_unit)
     if z_guess is not None:
         return solve_fixed_point(walker, z_guess)
+    if params.breaks_symmetry:
+        # A stride-periodic gait: the symmetric walker's gait first, then the symmetry-breaking
+        # effects raised from null along the stride map's fixed points.
+        symmetric = _symmetric_part(params)
+        base = find_gait(symmetric, planar=planar, steps_per_time_unit=steps_per_time_unit)
+        try:
+            return continue_gait(symmetric, params, base.fixed_point, steps_per_time_unit,
+                                 planar=base.planar)
+        except GaitNotFound as err:
+            raise GaitNotFound(
+                f"the symmetric walker walks (step time {base.step_time:.4g} s) but its gait does "
+                f"not follow to these symmetry-breaking effects: {err}"
+            ) from err
     reduced = planar_reduction(params)
     planar_walker = Walker(reduced, planar=True, steps_per_time_unit=steps_per_time_unit)
     reasons = []
@@ -359,9 +408,11 @@ def find_gait(params: Params, z_guess: np.ndarray | None = None, planar: bool | 
 
 
 def continue_gait(start: Params, end: Params, z_start: np.ndarray, steps_per_time_unit: int = 16,
-                  min_ds: float = 1e-3) -> Gait:
+                  min_ds: float = 1e-3, planar: bool = False) -> Gait:
     """Follow a gait from parameter set ``start`` (gait ``z_start``) to ``end`` along the straight
-    line in parameter space, halving the step on failure (natural-parameter continuation)."""
+    line in parameter space, halving the step on failure (natural-parameter continuation). The
+    map is the stride map all the way when ``end`` breaks the mirror symmetry."""
+    period = 2 if end.breaks_symmetry else 1
     pa, pb = start.vector(), end.vector()
     s, ds = 0.0, 0.25
     z = np.array(z_start, dtype=float)
@@ -370,17 +421,26 @@ def continue_gait(start: Params, end: Params, z_start: np.ndarray, steps_per_tim
         s_new = min(1.0, s + ds)
         trial = _params_at(end, pa + s_new * (pb - pa))
         try:
-            gait = solve_fixed_point(Walker(trial, steps_per_time_unit=steps_per_time_unit), z)
+            gait = solve_fixed_point(Walker(trial, planar=planar, period=period,
+                                            steps_per_time_unit=steps_per_time_unit), z)
         except GaitNotFound as err:
             ds *= 0.5
             if ds < min_ds:
                 raise GaitNotFound(
-                    f"continuation from the planar gait stalled at s = {s:.4f} of 1 ({err})"
+                    f"continuation stalled at s = {s:.4f} of the way ({err})"
                 ) from err
             continue
         z, s = gait.fixed_point, s_new
         ds = min(0.5, ds * 1.5)
     return gait
+
+
+def _symmetric_part(params: Params) -> Params:
+    """``params`` with every symmetry-breaking effect at its null value."""
+    from .effects import EFFECTS
+
+    return params.replace(**{f"effects.{k}": EFFECTS[k].null for k in params.effects
+                             if EFFECTS[k].breaks_symmetry})
 
 
 def _params_at(template: Params, vector: np.ndarray) -> Params:
@@ -394,6 +454,6 @@ def _lateral_singular(params: Params) -> bool:
     from .engine import engine
 
     x = np.zeros(10)
-    m_mat = np.array(engine(False).k["mass_matrix"](x, params.vector())[0])
+    m_mat = np.array(engine(False).k["mass_matrix"](x, params.input_vector())[0])
     scale = params.total_mass * params.leg_length**2
     return bool(np.linalg.eigvalsh(0.5 * (m_mat + m_mat.T))[0] < 1e-8 * scale)

@@ -17,14 +17,21 @@ from typing import Any
 
 import numpy as np
 
+from .effects import EFFECTS
 from .files import atomic_write_text
 
 __all__ = [
+    "BASE_NAMES",
+    "INPUT_NAMES",
+    "N_INPUT",
+    "N_PARAMS",
     "PARAMETER_NAMES",
+    "ParamView",
     "ParameterError",
     "Params",
     "load_params",
     "save_params",
+    "view",
 ]
 
 
@@ -32,8 +39,8 @@ class ParameterError(ValueError):
     """A parameter set is malformed or physically impossible; the message names the field."""
 
 
-#: Flattened parameter vector, in the order of :meth:`Params.vector` (vector components indexed).
-PARAMETER_NAMES: tuple[str, ...] = (
+#: The walker's own parameters, in the order of :meth:`Params.vector` (vector components indexed).
+BASE_NAMES: tuple[str, ...] = (
     "leg_length",
     "foot_radius",
     "foot_lateral_radius",
@@ -52,6 +59,17 @@ PARAMETER_NAMES: tuple[str, ...] = (
     "slope",
     "gravity",
 )
+
+#: Flattened parameter vector, in the order of :meth:`Params.vector`: the walker's parameters,
+#: then every registered effect's strength (``effects.NAME``, the null value where a file is silent).
+PARAMETER_NAMES: tuple[str, ...] = BASE_NAMES + tuple(f"effects.{name}" for name in EFFECTS)
+
+#: The compiled functions' parameter input (:meth:`Params.input_vector`): the parameter vector and
+#: the side in stance (+1: the physical left leg; -1: the right leg, the description mirrored).
+INPUT_NAMES: tuple[str, ...] = PARAMETER_NAMES + ("side",)
+
+N_PARAMS = len(PARAMETER_NAMES)
+N_INPUT = len(INPUT_NAMES)
 
 _SCALARS = (
     "leg_length",
@@ -134,6 +152,12 @@ class Params:
         _check_effect_names(effects)
         for key, value in effects.items():
             effects[key] = _as_float(f"effects.{key}", value)
+            low, high = EFFECTS[key].bounds
+            if not low <= effects[key] <= high:
+                raise ParameterError(
+                    f"effects.{key} = {effects[key]!r} lies outside its physical bounds "
+                    f"[{low}, {high}] ({EFFECTS[key].unit})"
+                )
         object.__setattr__(self, "effects", _FrozenDict(effects))
         self._validate()
 
@@ -184,7 +208,7 @@ class Params:
         return np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
 
     def vector(self) -> np.ndarray:
-        """The flattened parameter vector, shape (17,), in the order of :data:`PARAMETER_NAMES`."""
+        """The flattened parameter vector, shape (N_PARAMS,), in the order of :data:`PARAMETER_NAMES`."""
         return np.array(
             [
                 self.leg_length,
@@ -197,9 +221,26 @@ class Params:
                 *self.inertia,
                 self.slope,
                 self.gravity,
+                *(self.effects.get(name, effect.null) for name, effect in EFFECTS.items()),
             ],
             dtype=float,
         )
+
+    def input_vector(self, side: float = 1.0) -> np.ndarray:
+        """The compiled functions' parameter input, shape (N_INPUT,) (:data:`INPUT_NAMES`).
+
+        ``side`` is +1 for a step with the physical left leg in stance, -1 for the right leg.
+        """
+        if side not in (1.0, -1.0):
+            raise ValueError(f"side must be +1 (left leg in stance) or -1 (right), got {side!r}")
+        return np.append(self.vector(), float(side))
+
+    @property
+    def breaks_symmetry(self) -> bool:
+        """True when a symmetry-breaking effect is on: gaits repeat every stride, not every step."""
+        from .effects import breaks_symmetry
+
+        return breaks_symmetry(self.effects)
 
     @property
     def total_mass(self) -> float:
@@ -253,6 +294,44 @@ class Params:
         return cls(**kwargs, effects=dict(effects))
 
 
+@dataclasses.dataclass(frozen=True)
+class ParamView:
+    """Named views of a parameter input (NumPy or CasADi): the one place that knows the layout.
+
+    Attributes are the parameter file's names (``com_offset`` shape (3,), ``inertia`` shape (6,)),
+    ``effects`` (name -> strength, every registered effect) and ``side`` (None without one).
+    """
+
+    leg_length: Any
+    foot_radius: Any
+    foot_lateral_radius: Any
+    hip_width: Any
+    leg_mass: Any
+    axle_mass: Any
+    com_offset: Any
+    inertia: Any
+    slope: Any
+    gravity: Any
+    effects: dict
+    side: Any
+
+
+def view(p: Any) -> ParamView:
+    """Named views of ``p``, a parameter vector (N_PARAMS) or input (N_INPUT), NumPy or CasADi."""
+    size = p.shape[0] if hasattr(p, "shape") else len(p)
+    if size not in (N_PARAMS, N_INPUT):
+        raise ValueError(f"a parameter input has {N_PARAMS} or {N_INPUT} entries, got {size}")
+    at = {name: i for i, name in enumerate(INPUT_NAMES)}
+    scalars = {name: p[at[name]] for name in _SCALARS}
+    return ParamView(
+        **scalars,
+        com_offset=p[at["com_offset[0]"]:at["com_offset[2]"] + 1],
+        inertia=p[at["inertia[0]"]:at["inertia[5]"] + 1],
+        effects={name: p[at[f"effects.{name}"]] for name in EFFECTS},
+        side=p[at["side"]] if size == N_INPUT else None,
+    )
+
+
 class _FrozenDict(dict):
     """A dict that refuses changes, so that a frozen :class:`Params` stays frozen."""
 
@@ -265,10 +344,11 @@ class _FrozenDict(dict):
     def __hash__(self) -> int:  # type: ignore[override]
         return hash(tuple(sorted(self.items())))
 
+    def __reduce__(self):  # pickles (process pools) without going through the refused setters
+        return (_FrozenDict, (dict(self),))
+
 
 def _check_effect_names(effects: Mapping[str, Any]) -> None:
-    from .effects import EFFECTS  # local: the registry imports nothing from here at import time
-
     for name in effects:
         if name not in EFFECTS:
             known = ", ".join(sorted(EFFECTS)) or "none yet"
@@ -304,8 +384,6 @@ def _get_flat(data: dict[str, Any], name: str) -> Any:
     if name.startswith("effects."):
         key = name.split(".", 1)[1]
         _check_effect_names({key: 0.0})
-        from .effects import EFFECTS
-
         return data["effects"].get(key, EFFECTS[key].null)
     base, index = _split_flat(name)
     if base not in data or base == "effects":

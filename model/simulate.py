@@ -16,6 +16,7 @@ import numpy as np
 from scipy.interpolate import CubicHermiteSpline
 from tqdm.auto import tqdm
 
+from .effects import CONTINUOUS
 from .parameters import Params
 from .walker import StepFailure, Walker
 
@@ -53,8 +54,12 @@ class Trajectory:
     min_clearance : float
         Smallest swing-foot height between the legs passing and heel strike, over all steps (m).
     status : str
-        ``"completed"``, ``"fell"`` or ``"no_heel_strike"``.
+        ``"completed"``, ``"fell"``, ``"no_heel_strike"`` or ``"inadmissible_impact"``.
     message : str
+    collision_losses : ndarray, shape (n_steps,)
+        Kinetic energy lost at each heel strike (J).
+    dissipated : dict of str to float
+        Energy dissipated between collisions by each continuous effect over the walk (J).
     """
 
     times: np.ndarray
@@ -66,6 +71,8 @@ class Trajectory:
     min_clearance: float
     status: str
     message: str
+    collision_losses: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
+    dissipated: dict = dataclasses.field(default_factory=dict)
 
     @property
     def lean(self) -> np.ndarray:
@@ -123,10 +130,13 @@ def simulate(params: Params, z0: np.ndarray, steps: int, sample_rate: float | No
     events: list[HeelStrike] = []
     scuffs, clearance, status, message = 0, np.inf, "completed", f"{steps} steps"
     next_sample = 0.0
+    losses: list[float] = []
+    dissipated = np.zeros(len(CONTINUOUS))
     for k in tqdm(range(steps), disable=not progress, desc="steps", unit="step"):
         stance = "L" if sign > 0 else "R"
+        side = 1 if sign > 0 else -1
         try:
-            step = walker.step(z, record=True)
+            step = walker.step(z, record=True, side=side)
             times, states = step.times, step.states
         except StepFailure as err:
             status, message = err.status, f"step {k + 1}: {err}"
@@ -138,7 +148,7 @@ def simulate(params: Params, z0: np.ndarray, steps: int, sample_rate: float | No
         sample_times = np.arange(next_sample, t0 + times[-1] + 1e-15, sample_dt)
         if len(times) >= 2 and len(sample_times):
             local = sample_times - t0
-            derivs = np.array([walker.rhs(x) for x in states])
+            derivs = np.array([walker.rhs(x, side) for x in states])
             spline = CubicHermiteSpline(times, states, derivs, axis=0)
             xs = spline(np.clip(local, 0.0, times[-1]))
             pub = np.array([_mirror(walker.to_public(x), sign) for x in xs])
@@ -158,6 +168,8 @@ def simulate(params: Params, z0: np.ndarray, steps: int, sample_rate: float | No
             break
         scuffs += step.scuffs
         clearance = min(clearance, step.clearance)
+        losses.append(step.collision_loss)
+        dissipated += step.dissipated[-1]
         t0 += step.step_time
         origin = origin + np.array([step.contact[0], sign * step.contact[1]])
         landing = "R" if stance == "L" else "L"
@@ -174,7 +186,8 @@ def simulate(params: Params, z0: np.ndarray, steps: int, sample_rate: float | No
         stance_all, contact_all = np.zeros(0, dtype="<U1"), np.zeros((0, 2))
     return Trajectory(times=times_all, states=states_all, stance=stance_all, contact=contact_all,
                       events=events, scuffs=scuffs, min_clearance=float(clearance), status=status,
-                      message=message)
+                      message=message, collision_losses=np.array(losses),
+                      dissipated=dict(zip(CONTINUOUS, dissipated.tolist(), strict=True)))
 
 
 def _mirror(z: np.ndarray, sign: float) -> np.ndarray:

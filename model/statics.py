@@ -361,7 +361,7 @@ def _kernels() -> tuple[ca.Function, ca.Function]:
     force = f0 + ca.mtimes(a_mat.T, lam)
     stiff = ca.jacobian(force, q)
     c2z = e["c2"][2]
-    m, mh = p[4], p[5]
+    m, mh = sym.ctx.params.leg_mass, sym.ctx.params.axle_mass
     com = (m * (e["g1"] + e["g2"]) + mh * e["axle"]) / (2 * m + mh)
     opts = {"allow_free": False}
     statics = ca.Function(
@@ -388,7 +388,7 @@ class _Statics:
     def __init__(self, params: Params, friction: float):
         self.params = params
         self.friction = friction
-        self.p = params.vector()
+        self.p = params.input_vector()
         self.statics, self.inertial = _kernels()
         mass = params.total_mass
         self.l = params.leg_length
@@ -396,7 +396,9 @@ class _Statics:
         self.k_scale = self.weight * self.l  # N m
         self.m_scale = mass * self.l**2  # kg m^2
         alpha = params.slope
-        self.gvec = params.gravity * np.array([math.sin(alpha), 0.0, -math.cos(alpha)])
+        beta = params.effects.get("cross_slope", 0.0)  # the ramp tilted sideways (an effect)
+        self.gvec = params.gravity * np.array([math.sin(alpha), -math.cos(alpha) * math.sin(beta),
+                                               -math.cos(alpha) * math.cos(beta)])
         d_x, _, d_z = params.com_offset
         # Angle at which a free leg hangs with its centre of mass below the hip on level ground.
         self.hang = math.atan2(d_x, -d_z) if (d_x or d_z) else 0.0

@@ -19,10 +19,11 @@ import math
 
 import numpy as np
 
+from .effects import CONTINUOUS, EFFECTS
 from .engine import SCAN, engine
-from .parameters import Params
+from .parameters import N_PARAMS, Params
 
-__all__ = ["STATE_NAMES", "Step", "StepFailure", "Walker"]
+__all__ = ["STATE_NAMES", "Cycle", "Step", "StepFailure", "Walker"]
 
 #: Public state order (model.md section 1).
 STATE_NAMES = (
@@ -37,6 +38,9 @@ _GUARD_MAXIT = 30
 # The swing foot must start at least this far (relative to the leg length) behind the stance foot:
 # legs together (a zero-length step) is a trivial fixed point of the step map, not a gait.
 _START_GAP = 1e-6
+# Admissible collision: kinetic energy may not grow by more than round-off (relative to the
+# kinetic energy before), and no normal impulse may pull (relative to the total).
+_IMPACT_RTOL = 1e-12
 
 
 class StepFailure(RuntimeError):
@@ -68,14 +72,23 @@ class Step:
         Minimum swing-foot height (m) between the legs passing and heel strike.
     jacobian : ndarray, shape (8, 8) or None
         dz_plus / dz_0 when requested.
-    jacobian_params : ndarray, shape (8, 17) or None
-        dz_plus / dp when requested.
+    jacobian_params : ndarray, shape (8, N_PARAMS) or None
+        dz_plus / dp when requested (p in the order of ``PARAMETER_NAMES``).
     time_gradient : ndarray, shape (8,) or None
         d step_time / dz_0 when requested.
-    time_gradient_params : ndarray, shape (17,) or None
+    time_gradient_params : ndarray, shape (N_PARAMS,) or None
         d step_time / dp when requested.
     times, states : ndarray, shapes (n,), (n, nx) or None
         Samples of the internal state on the integration grid, with the end state, when requested.
+    side : int
+        +1 when the physical left leg was in stance (z0 is the physical state), -1 for the right.
+    collision_loss : float
+        Kinetic energy lost in the heel strike (J, >= 0).
+    impulses : ndarray, shape (2,)
+        Normal impulses at the landing and the trailing foot (N s).
+    dissipated : ndarray, shape (n, n_continuous) or None
+        Energy dissipated since the start of the step by each continuous effect
+        (:data:`toywalk.model.effects.CONTINUOUS`), at ``times``, when recorded (J).
     """
 
     z_plus: np.ndarray
@@ -84,12 +97,48 @@ class Step:
     contact: np.ndarray
     scuffs: int
     clearance: float
+    side: int = 1
+    collision_loss: float = 0.0
+    impulses: np.ndarray | None = None
+    dissipated: np.ndarray | None = None
     jacobian: np.ndarray | None = None
     jacobian_params: np.ndarray | None = None
     time_gradient: np.ndarray | None = None
     time_gradient_params: np.ndarray | None = None
     times: np.ndarray | None = None
     states: np.ndarray | None = None
+
+
+@dataclasses.dataclass
+class Cycle:
+    """One period of the walker's motion: a step (symmetric walker) or a stride (two steps, left
+    leg in stance first, for a walker whose effects break the mirror symmetry).
+
+    Attributes
+    ----------
+    z_plus : ndarray, shape (8,)
+        State after the period, in the description of its start.
+    time : float
+        Its duration (s).
+    steps : list of Step
+    jacobian, jacobian_params, time_gradient : ndarray or None
+        dz_plus/dz0 (8, 8), dz_plus/dp (8, N_PARAMS), d time/dz0 (8,) when requested.
+    """
+
+    z_plus: np.ndarray
+    time: float
+    steps: list
+    jacobian: np.ndarray | None = None
+    jacobian_params: np.ndarray | None = None
+    time_gradient: np.ndarray | None = None
+
+    @property
+    def displacement(self) -> np.ndarray:
+        """Advance of the stance contact over the period (m, ramp frame of the start), shape (2,)."""
+        total = np.zeros(2)
+        for step in self.steps:
+            total += step.contact * [1.0, step.side]
+        return total
 
 
 class Walker:
@@ -108,23 +157,45 @@ class Walker:
         about 1e-12 for the bundled walkers (tests/model/test_stepmap.py checks convergence).
     max_step_time : float
         A step that has not ended after this many sqrt(l/g) time units is a failure.
+    period : int, optional
+        Steps in the map whose fixed points are gaits (:meth:`cycle`): 1 (the step map) or 2 (the
+        stride map). Default: 2 when the walker's effects break the mirror symmetry, else 1.
+    effects : bool
+        Use the equations with the effect library (default); False runs the seed's model alone
+        and refuses a parameter set with effects (benchmarks and null checks).
+    compiled : bool
+        Use compiled kernels (default) or CasADi's virtual machine.
     """
 
     def __init__(self, params: Params, planar: bool = False, steps_per_time_unit: int = 16,
-                 max_step_time: float = 20.0):
+                 max_step_time: float = 20.0, period: int | None = None, effects: bool = True,
+                 compiled: bool = True):
         if not isinstance(params, Params):
             raise TypeError(f"params must be a Params, got {type(params).__name__}")
         if planar and not is_planar_symmetric(params):
             raise ValueError(
                 "planar=True needs a planar-symmetric walker (com_offset[1] = 0, inertia xy = yz = 0, "
-                "hip_width = 0)"
+                "hip_width = 0, no cross_slope)"
             )
+        if not effects and any(v != EFFECTS[k].null for k, v in params.effects.items()):
+            raise ValueError("effects=False runs the seed's model: the parameter set has effects on")
+        if period is None:
+            period = 2 if params.breaks_symmetry else 1
+        if period not in (1, 2):
+            raise ValueError(f"period must be 1 (step map) or 2 (stride map), got {period!r}")
         if steps_per_time_unit < 1:
             raise ValueError(f"steps_per_time_unit must be >= 1, got {steps_per_time_unit!r}")
         self.params = params
         self.planar = planar
-        self.p = params.vector()
-        self.eng = engine(planar)
+        self.period = period
+        self._inputs = {1: params.input_vector(1.0), -1: params.input_vector(-1.0)}
+        self.p = self._inputs[1]
+        self.eng = engine(planar, effects, compiled)
+        # Admissibility of the collision is checked where an effect changes the collision law.
+        self._check_impact = any(EFFECTS[k].enters == "collision law" and v != EFFECTS[k].null
+                                 for k, v in params.effects.items())
+        self._dissipative = any(k in CONTINUOUS and v != EFFECTS[k].null
+                                for k, v in params.effects.items())
         self.lay = self.eng.lay
         self.dt = params.time_scale / steps_per_time_unit
         self.max_step_time = max_step_time * params.time_scale
@@ -178,35 +249,39 @@ class Walker:
         return np.concatenate([xi, travel])
 
     # --------------------------------------------------------------------------- pointwise
-    def rhs(self, x: np.ndarray) -> np.ndarray:
-        """Internal state derivative, shape (nx,), at internal state x."""
-        return self.eng.k["rhs"](x, self.p)[0].ravel().copy()
+    def rhs(self, x: np.ndarray, side: int = 1) -> np.ndarray:
+        """Internal state derivative, shape (nx,), at internal state x (``side``: see :meth:`step`)."""
+        return self.eng.k["rhs"](x, self._inputs[side])[0].ravel().copy()
 
-    def energy(self, x: np.ndarray) -> float:
+    def energy(self, x: np.ndarray, side: int = 1) -> float:
         """Total energy (J): kinetic plus gravitational, with the contact travel, at internal state x."""
-        return float(self.eng.k["energy"](x, self.p)[0][0, 0])
+        return float(self.eng.k["energy"](x, self._inputs[side])[0][0, 0])
 
-    def guard(self, x: np.ndarray) -> tuple[float, float]:
+    def dissipation(self, x: np.ndarray, side: int = 1) -> np.ndarray:
+        """Power (W) dissipated by each continuous effect (:data:`~toywalk.model.effects.CONTINUOUS`)."""
+        return self.eng.k["dissipation"](x, self._inputs[side])[0].ravel().copy()
+
+    def guard(self, x: np.ndarray, side: int = 1) -> tuple[float, float]:
         """(swing-foot height over the ramp, its distance ahead of the stance contact) (m)."""
-        g = self.eng.k["guard"](x, self.p)[0].ravel()
+        g = self.eng.k["guard"](x, self._inputs[side])[0].ravel()
         return float(g[0]), float(g[1])
 
-    def points(self, x: np.ndarray) -> np.ndarray:
+    def points(self, x: np.ndarray, side: int = 1) -> np.ndarray:
         """The walker's points relative to the stance contact, shape (9, 3) (m).
 
         Rows: stance contact C, stance foot centre O1, stance hip H1, axle, swing hip H2, swing foot
         centre O2, swing foot's lowest point C2, stance-leg COM G1, swing-leg COM G2.
         """
-        return self.eng.k["points"](x, self.p)[0].T.copy()
+        return self.eng.k["points"](x, self._inputs[side])[0].T.copy()
 
-    def collide(self, z_minus: np.ndarray) -> np.ndarray:
+    def collide(self, z_minus: np.ndarray, side: int = 1) -> np.ndarray:
         """Collision, relabel and mirror of a public state just before heel strike; shape (8,)."""
         x = self.full_state(z_minus)
-        return self.to_public(self.eng.k["collision"](x, self.p)[0].ravel())
+        return self.to_public(self.eng.k["collision"](x, self._inputs[side])[0].ravel())
 
     # --------------------------------------------------------------------------- one step
     def step(self, z0: np.ndarray, jacobian: bool = False, params_jacobian: bool = False,
-             record: bool = False) -> Step:
+             record: bool = False, side: int = 1) -> Step:
         """Integrate from just after a heel strike to just after the next one (the step map).
 
         Parameters
@@ -218,20 +293,48 @@ class Walker:
         params_jacobian : bool
             Also compute dz_plus/dp (p in the order of ``PARAMETER_NAMES``); implies ``jacobian``.
         record : bool
-            Also return the samples of the internal state on the integration grid.
+            Also return the samples of the internal state on the integration grid, and the energy
+            each continuous effect has dissipated at them.
+        side : {1, -1}
+            The physical leg in stance: +1 the left (z0 is the physical state), -1 the right (z0
+            is the mirrored description). Only symmetry-breaking effects tell them apart.
 
         Raises
         ------
         StepFailure
-            ``status`` is ``"fell"`` (a hip, a leg's or the walker's centre of mass reached the ramp) or
-            ``"no_heel_strike"`` (no heel strike within ``max_step_time``).
+            ``status`` is ``"fell"`` (a hip, a leg's or the walker's centre of mass reached the ramp),
+            ``"no_heel_strike"`` (no heel strike within ``max_step_time``) or ``"inadmissible_impact"``
+            (an effect of the collision law would gain energy or pull on a foot).
         """
         x0 = self.full_state(z0)
-        return self._step_internal(x0, jacobian or params_jacobian, params_jacobian, record)
+        return self._step_internal(x0, jacobian or params_jacobian, params_jacobian, record, side)
+
+    def cycle(self, z0: np.ndarray, jacobian: bool = False, params_jacobian: bool = False,
+              record: bool = False) -> Cycle:
+        """The map whose fixed points are gaits: the step map, or the stride map P_R o P_L (left
+        leg in stance first) when ``period`` is 2. Mirroring twice restores the description, so a
+        stride's end state is in the frame of z0."""
+        steps, z = [], np.asarray(z0, dtype=float)
+        for i in range(self.period):
+            steps.append(self.step(z, jacobian, params_jacobian, record, side=1 if i % 2 == 0 else -1))
+            z = steps[-1].z_plus
+        out = Cycle(z_plus=z, time=sum(s.step_time for s in steps), steps=steps)
+        if jacobian or params_jacobian:
+            jac, grad = np.eye(8), np.zeros(8)
+            jac_p = np.zeros((8, N_PARAMS)) if params_jacobian else None
+            for s in steps:
+                grad = grad + s.time_gradient @ jac
+                if params_jacobian:
+                    jac_p = s.jacobian @ jac_p + s.jacobian_params
+                jac = s.jacobian @ jac
+            out.jacobian, out.time_gradient, out.jacobian_params = jac, grad, jac_p
+        return out
 
     def _step_internal(self, x0: np.ndarray, jacobian: bool = False, params_jacobian: bool = False,
-                       record: bool = False) -> Step:
-        k, p, dt, lay = self.eng.k, self.p, self.dt, self.lay
+                       record: bool = False, side: int = 1) -> Step:
+        if side not in (1, -1):
+            raise ValueError(f"side must be +1 (left leg in stance) or -1 (right), got {side!r}")
+        k, p, dt, lay = self.eng.k, self._inputs[side], self.dt, self.lay
         g_prev = k["probe"](x0, p)[0].ravel().copy()
         x = x0.copy()
         n_done = 0
@@ -304,6 +407,9 @@ class Walker:
         x_t = xt.ravel().copy()
         step_time = hit * dt + tau
         x_plus = k["collision"](x_t, p)[0].ravel().copy()
+        d_kinetic, impulses = (a.ravel().copy() for a in k["impact"](x_t, p))
+        if self._check_impact:
+            self._admissible(x_t, float(d_kinetic[0]), impulses, side)
         travel = slice(lay.n_dyn, lay.nx)
         contact = np.zeros(2)
         contact[: lay.nx - lay.n_dyn] = x_plus[travel] - x0[travel]
@@ -314,14 +420,43 @@ class Walker:
             contact=contact,
             scuffs=scuffs,
             clearance=float(clearance),
+            side=side,
+            collision_loss=-float(d_kinetic[0]),
+            impulses=impulses,
         )
         if record:
             blocks.append(x_t[None, :])
             out.states = np.concatenate(blocks)
             out.times = np.concatenate([np.arange(hit + 1) * dt, [step_time]])
+            out.dissipated = self._dissipated(out.states, out.times, p)
         if jacobian:
-            self._step_jacobian(x0, hit, x_before, tau, x_t, out, params_jacobian)
+            self._step_jacobian(x0, hit, x_before, tau, x_t, out, params_jacobian, p)
         return out
+
+    def _dissipated(self, states: np.ndarray, times: np.ndarray, p: np.ndarray) -> np.ndarray:
+        """Cumulative energy dissipated by each continuous effect at the recorded samples (J)."""
+        n = self.eng.fns["dissipation"].size1_out(0)
+        out = np.zeros((len(times), n))
+        if not self._dissipative:
+            return out
+        kernel = self.eng.k["dissipation_step"]
+        for i in range(1, len(times)):
+            out[i] = out[i - 1] + kernel(states[i - 1], times[i] - times[i - 1], p)[0].ravel()
+        return out
+
+    def _admissible(self, x_t: np.ndarray, d_kinetic: float, impulses: np.ndarray, side: int) -> None:
+        kinetic = self.eng.k["energy"](np.r_[x_t[:self.lay.n_dyn], np.zeros(self.lay.nx - self.lay.n_dyn)],
+                                       self._inputs[side])[0][0, 0]
+        kinetic -= self.eng.k["energy"](np.r_[x_t[:self.lay.nq], np.zeros(self.lay.nx - self.lay.nq)],
+                                        self._inputs[side])[0][0, 0]
+        total = float(np.sum(np.abs(impulses)))
+        if d_kinetic > _IMPACT_RTOL * max(kinetic, 0.0) or np.min(impulses) < -_IMPACT_RTOL * total:
+            raise StepFailure(
+                "inadmissible_impact",
+                f"the heel strike would gain {d_kinetic:.3g} J or pull on a foot (normal impulses "
+                f"{impulses[0]:.3g}, {impulses[1]:.3g} N s): the collision-law effects are beyond "
+                "what this impact admits",
+            )
 
     def stride(self, z0: np.ndarray, jacobian: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
         """The stride map P o P (the seed's map f, collision to the next collision of the same foot).
@@ -330,7 +465,7 @@ class Walker:
         Mirroring twice restores the original description, so z_2 is in the frame of z0.
         """
         first = self.step(z0, jacobian=jacobian)
-        second = self.step(first.z_plus, jacobian=jacobian)
+        second = self.step(first.z_plus, jacobian=jacobian, side=-1)
         jac = second.jacobian @ first.jacobian if jacobian else None
         return second.z_plus, jac
 
@@ -340,10 +475,11 @@ class Walker:
         states = np.concatenate(blocks)
         return np.arange(len(states)) * self.dt, states
 
-    def _step_jacobian(self, x0, n_full, x_before, tau, x_t, out: Step, params: bool) -> None:
+    def _step_jacobian(self, x0, n_full, x_before, tau, x_t, out: Step, params: bool,
+                       p: np.ndarray) -> None:
         """Chain rule through the full steps, the last step (with the implicit guard time) and the
         collision: dx_T/dx0 = S_x Phi + S_tau dtau/dx0, dtau/dx0 = -h_x S_x Phi / (h_x S_tau)."""
-        k, p, dt = self.eng.k, self.p, self.dt
+        k, dt = self.eng.k, self.dt
         nd = self.lay.n_dyn
         _, phi_x, phi_p = self.eng.chunk_jacobian(x0, n_full, dt, p, params=params)
         _, s_x, s_tau, s_p = (a.copy() for a in k["final_jac"](x_before, tau, p))
@@ -360,14 +496,16 @@ class Walker:
             dxt_dp = s_x @ phi_p + s_p
             dtau_dp = -(h_x @ dxt_dp + h_p) / denom
             dxt_dp = dxt_dp + np.outer(s_tau, dtau_dp)
-            out.jacobian_params = self._rows_to_public((c_x @ dxt_dp + c_p)[:nd])
-            out.time_gradient_params = dtau_dp
+            # The last input column is the side in stance, not a parameter.
+            out.jacobian_params = self._rows_to_public((c_x @ dxt_dp + c_p)[:nd, :N_PARAMS])
+            out.time_gradient_params = dtau_dp[:N_PARAMS]
 
 
 def is_planar_symmetric(params: Params) -> bool:
     """True when motion with phi = psi = 0 is invariant (model.md section 7)."""
     i = params.inertia
-    return params.com_offset[1] == 0.0 and i[3] == 0.0 and i[5] == 0.0 and params.hip_width == 0.0
+    return (params.com_offset[1] == 0.0 and i[3] == 0.0 and i[5] == 0.0 and params.hip_width == 0.0
+            and params.effects.get("cross_slope", 0.0) == 0.0)
 
 
 def _checked_state(z) -> np.ndarray:

@@ -58,27 +58,52 @@ def _print_gait(report: dict, out=sys.stdout) -> None:
     fp = report["fixed_point"]
     print(f"status            {report['status']}{' (planar reduction)' if report['planar'] else ''}",
           file=out)
-    print(f"step time         {report['step_time']:.6g} s  (stride {report['stride_time']:.6g} s)",
-          file=out)
+    stride = report["map"] == "stride"
+    if stride:
+        print("periodic over      a stride (two steps): an effect breaks the left-right symmetry; "
+              "eigenvalues are the stride map's", file=out)
+        times = ", ".join(f"{t:.6g}" for t in report["step_times"])
+        print(f"step times        {times} s  (stride {report['stride_time']:.6g} s)", file=out)
+    else:
+        print(f"step time         {report['step_time']:.6g} s  (stride {report['stride_time']:.6g} s)",
+              file=out)
     print(f"stride length     {report['stride_length']:.6g} m", file=out)
+    if stride:
+        print(f"sideways drift    {report['stride_drift']:.4g} m per stride (heading "
+              f"{math.degrees(report['heading']):.4g} deg from the fall line, left +)", file=out)
     print(f"lean amplitude    {math.degrees(report['lean_amplitude']):.4g} deg", file=out)
     print(f"steer amplitude   {math.degrees(report['steer_amplitude']):.4g} deg", file=out)
     print("fixed point (just after heel strike):", file=out)
     for name, value in fp.items():
         print(f"  {name:<14s} {value: .10g}", file=out)
-    print("step-map eigenvalues (|lambda|, dominant components):", file=out)
+    print(f"{report['map']}-map eigenvalues (|lambda|, dominant components):", file=out)
     for e in report["eigenvalues"]:
         print(f"  {e['re']: .6f} {e['im']:+.6f}i   |{e['abs']:.6f}|   {', '.join(e['dominant'])}",
               file=out)
     verdict = "stable" if report["stable"] else "unstable"
     print(f"max |eigenvalue|  {report['max_abs_eigenvalue']:.6g} ({verdict}; over 20 steps a "
           f"perturbation grows by {report['growth_factor_20_steps']:.3g})", file=out)
+    losses = ", ".join(f"{loss:.4g}" for loss in report["collision_loss"])
+    print(f"collision loss    {losses} J per heel strike", file=out)
     print(f"swing clearance   {report['clearance']:.4g} m; scuffs per step {report['scuffs']}", file=out)
     print(f"can stand         {report['can_stand']}: {report['standing']}", file=out)
 
 
+def _with_effects(params, items):
+    """``params`` with the command line's ``--effect NAME=VALUE`` settings."""
+    from toywalk.model.parameters import ParameterError
+
+    effects = _parse_effects(items)
+    if not effects:
+        return params
+    try:
+        return params.replace(**{f"effects.{k}": v for k, v in effects.items()})
+    except ParameterError as err:
+        raise CommandError(str(err)) from err
+
+
 def cmd_gait(args) -> int:
-    params = _load(args.params)
+    params = _with_effects(_load(args.params), args.effect)
     if args.continue_:
         return _continue(args, params)
     gait = _find_gait(params)
@@ -190,18 +215,17 @@ def _plot_branch(branch, rows, path: Path) -> None:
 def cmd_effects(args) -> int:
     from toywalk.model.effects import EFFECTS
 
-    rows = [
-        {"name": e.name, "unit": e.unit, "null": e.null, "typical": e.typical, "physics": e.physics}
-        for e in EFFECTS.values()
-    ]
+    rows = [e.describe() for e in EFFECTS.values()]
     if args.json:
         json.dump(rows, sys.stdout, indent=2)
         sys.stdout.write("\n")
-    elif not rows:
-        print("no effects are registered yet: the model is the seed's (model.md section 6)")
-    else:
-        for r in rows:
-            print(f"{r['name']:<24s} [{r['unit']}] null {r['null']}, typical {r['typical']}: {r['physics']}")
+        return 0
+    for r in rows:
+        low, high = r["bounds"]
+        symmetry = "; breaks the left-right symmetry" if r["breaks_symmetry"] else ""
+        print(f"{r['name']:<22s} [{r['unit']}] null {r['null']:g}, typical {r['typical']:g}, "
+              f"bounds [{low:g}, {high:g}]; enters the {r['enters']}{symmetry}")
+        print(f"{'':<22s} {r['physics']}")
     return 0
 
 
@@ -211,8 +235,9 @@ def _parse_effects(items) -> dict:
         if "=" not in item:
             raise CommandError(f"--effect expects NAME=VALUE, got {item!r}")
         name, value = item.split("=", 1)
+        name = name.strip().removeprefix("effects.")
         try:
-            out[name.strip()] = float(value)
+            out[name] = float(value)
         except ValueError as err:
             raise CommandError(f"--effect {name}: not a number: {value!r}") from err
     return out
@@ -263,15 +288,7 @@ def _version() -> str:
 
 
 def cmd_simulate(args) -> int:
-    params = _load(args.params)
-    effects = _parse_effects(args.effect)
-    if effects:
-        from toywalk.model.parameters import ParameterError
-
-        try:
-            params = params.replace(**{f"effects.{k}": v for k, v in effects.items()})
-        except ParameterError as err:
-            raise CommandError(str(err)) from err
+    params = _with_effects(_load(args.params), args.effect)
     if args.steps < 1:
         raise CommandError(f"--steps must be >= 1, got {args.steps}")
     if not (args.noise >= 0 and math.isfinite(args.noise)):
@@ -366,6 +383,8 @@ def build_parser() -> argparse.ArgumentParser:
             importlib.import_module(name).register(sub)
     p = sub.add_parser("gait", help="find the symmetric gait and its stability")
     p.add_argument("--params", required=True, help="parameter TOML file")
+    p.add_argument("--effect", action="append", metavar="NAME=VALUE",
+                   help="set an effect's strength (repeatable; `toywalk effects` lists them)")
     p.add_argument("--json", action="store_true", help="machine-readable output")
     p.add_argument("--continue", dest="continue_", nargs=3, metavar=("NAME", "FROM", "TO"),
                    help="follow the gait family in parameter NAME from FROM to TO")
@@ -378,7 +397,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("simulate", help="simulate steps from the gait and write a trajectory")
     p.add_argument("--params", required=True)
     p.add_argument("--steps", type=int, required=True)
-    p.add_argument("--effect", action="append", metavar="NAME=VALUE")
+    p.add_argument("--effect", action="append", metavar="NAME=VALUE",
+                   help="set an effect's strength (repeatable; `toywalk effects` lists them)")
     p.add_argument("--noise", type=float, default=0.0, help="measurement noise SD added to angles (rad)")
     p.add_argument("--seed", type=int, default=None)
     p.add_argument("--out", required=True, help="trajectory file NAME.csv")

@@ -133,13 +133,16 @@ def test_file_errors_are_parameter_errors(tmp_path):
 
 def test_vector_order_matches_names(toy_params):
     vec = toy_params.vector()
-    assert vec.shape == (len(PARAMETER_NAMES),) == (17,)
+    # The walker's 17 parameters, then one strength per registered effect.
+    from toywalk.model.effects import EFFECTS
+
+    assert vec.shape == (len(PARAMETER_NAMES),) == (17 + len(EFFECTS),)
     for i, name in enumerate(PARAMETER_NAMES):
         assert vec[i] == toy_params.get(name), name
     # Spot checks against the fields themselves, independent of get().
     assert vec[PARAMETER_NAMES.index("com_offset[2]")] == toy_params.com_offset[2]
     assert vec[PARAMETER_NAMES.index("inertia[4]")] == toy_params.inertia[4]
-    assert vec[-1] == toy_params.gravity
+    assert vec[PARAMETER_NAMES.index("gravity")] == toy_params.gravity
 
 
 def test_replace_with_indexed_names(toy_params):

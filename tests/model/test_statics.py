@@ -199,7 +199,7 @@ def test_ramp_growth_rate_matches_the_model_flow(toy_report):
     assert conf.status == "unstable" and 8.0 < conf.growth_rate < 8.7  # fixes the time window
     q0 = np.array([conf.equilibrium[k] for k in ("phi", "psi", "theta_st", "theta_sw")])
     rhs = build_functions(False)["rhs"]
-    p = params.vector()
+    p = params.input_vector()
     x0 = np.concatenate([q0 + 1e-10 * np.random.default_rng(1).standard_normal(4), np.zeros(6)])
     sol = solve_ivp(lambda t, x: np.array(rhs(x, p)).ravel(), (0.0, 1.2), x0, method="DOP853",
                     rtol=1e-12, atol=1e-16, dense_output=True)
@@ -259,7 +259,7 @@ def test_one_foot_equilibrium_is_at_rest_in_the_model(toy_report):
         p = params.replace(slope=0.0) if level else params
         eq = report.configuration("one foot", level=level).equilibrium
         x = np.concatenate([[eq["phi"], eq["psi"], eq["theta_st"], eq["theta_sw"]], np.zeros(6)])
-        accel = np.array(rhs(x, p.vector())).ravel()[4:8]
+        accel = np.array(rhs(x, p.input_vector())).ravel()[4:8]
         assert np.max(np.abs(accel)) < 1e-9 * p.gravity / p.leg_length
 
 
@@ -284,7 +284,7 @@ def test_level_ground_one_foot_stiffness_is_the_potential_hessian(toy_params):
     conf = can_stand(params).configuration("one foot")
     q = [conf.equilibrium[k] for k in ("phi", "psi", "theta_st", "theta_sw")]
     pot, _ = _potential_functions()
-    _, grad, hess, forcing0 = (np.array(v) for v in pot(q, params.vector()))
+    _, grad, hess, forcing0 = (np.array(v) for v in pot(q, params.input_vector()))
     scale = params.total_mass * params.gravity * params.leg_length
     np.testing.assert_allclose(forcing0.ravel(), -grad.ravel(), atol=1e-12 * scale)
     np.testing.assert_allclose(np.linalg.norm(grad), 0.0, atol=1e-9 * scale)  # an equilibrium
@@ -310,7 +310,7 @@ def test_point_feet_two_feet_stiffness_is_the_constrained_second_variation(slope
     assert conf.status == "unstable" and len(conf.stiffness) == 1
     q0 = np.array([conf.equilibrium[k] for k in ("phi", "psi", "theta_st", "theta_sw")])
     pot, c2fun = _potential_functions()
-    p = params.vector()
+    p = params.input_vector()
     target, jac0 = (np.array(v) for v in c2fun(q0, p))
     tangent = np.linalg.svd(jac0)[2][-1]
 
