@@ -371,6 +371,40 @@ def case_gait_solves() -> dict:
     return out
 
 
+def case_effects_overhead(walkers: dict) -> dict:
+    """Case 7: the effect library's cost at null. The same walker through the kernels built with
+    every effect strength (and the side in stance) as symbolic inputs, against kernels built from
+    the seed's equations alone (``effects=False``, compiled the same way). Rounds alternate the
+    two so that a change in machine load hits both; the ratio reported is the median over rounds.
+    """
+    out = {}
+    for name, (w, z) in walkers.items():
+        seed = Walker(w.params, planar=w.planar, effects=False)
+        a, b = w.step(z, jacobian=True), seed.step(z, jacobian=True)
+        entry = {
+            "z_plus_max_abs_diff": float(np.max(np.abs(a.z_plus - b.z_plus))),
+            "jacobian_max_abs_diff": float(np.max(np.abs(a.jacobian - b.jacobian))),
+        }
+        for label, call in (("step_map", lambda w_, z=z: w_.step(z)),
+                            ("step_map_and_jacobian", lambda w_, z=z: w_.step(z, jacobian=True))):
+            rounds = []
+            for _ in range(3):
+                t_seed = measure(lambda call=call, seed=seed: call(seed), budget_s=1.5)
+                t_ours = measure(lambda call=call, w=w: call(w), budget_s=1.5)
+                rounds.append((t_ours, t_seed))
+            ratios = [o["time_median_s"] / s_["time_median_s"] for o, s_ in rounds]
+            entry[label] = {
+                "effects_time_median_s": float(np.median([o["time_median_s"] for o, _ in rounds])),
+                "seed_time_median_s": float(np.median([s_["time_median_s"] for _, s_ in rounds])),
+                "cost_ratio_rounds": ratios,
+                "cost_ratio_median": float(np.median(ratios)),
+            }
+        out[name] = entry
+    out["aim_at_most_1.3x_met"] = bool(max(out[n]["step_map_and_jacobian"]["cost_ratio_median"]
+                                           for n in walkers) <= 1.3)
+    return out
+
+
 # ------------------------------------------------------------------------------------ output
 def write_json(data: dict, path: Path) -> None:
     """Write ``data`` as JSON atomically (temporary file in the same folder, then rename)."""
@@ -452,6 +486,11 @@ def print_table(res: dict) -> None:
     c50 = gs["continuation_50_points"]
     print(f"   continuation, {c50['points']} points of the slope family: {c50['time_s']:.2f} s "
           f"({c50['time_per_point_s'] * 1e3:.1f} ms per point)")
+    eo = res["effects_overhead"]
+    print("6. effects library at null vs the seed's equations alone (cost ratio, median of rounds)")
+    row("step map", lambda n: f"{eo[n]['step_map']['cost_ratio_median']:>21.2f}x")
+    row("step map + Jacobian", lambda n: f"{eo[n]['step_map_and_jacobian']['cost_ratio_median']:>21.2f}x")
+    row("max |J_effects - J_seed|", lambda n: sci_cell(eo[n]["jacobian_max_abs_diff"]))
     print("aims (>= 30x faster step map + Jacobian than the uncompiled baseline; "
           "eigenvalues >= 100x more accurate):")
     for k, v in res["aims"].items():
@@ -496,6 +535,7 @@ def main() -> dict:
     res["baseline"] = case_baseline(walkers, refs, res["step_map"], res["step_map_jacobian"])
     res["leg_mass_floor"] = case_leg_mass_floor()
     res["gait_solves"] = case_gait_solves()
+    res["effects_overhead"] = case_effects_overhead(walkers)
     pl = res["baseline"]["planar_simplest"]["baseline_vm_rhs"]
     d3 = res["baseline"]["walker_3d"]["baseline_vm_rhs"]
     res["aims"] = {
@@ -513,6 +553,7 @@ def main() -> dict:
                   1e-300), 1),
         "eigenvalue_accuracy_ratio_vs_published_planar_leg_mass_1e-10": round(
             res["leg_mass_floor"]["accuracy_ratio"], 1),
+        "effects_at_null_cost_at_most_1.3x_met": res["effects_overhead"]["aim_at_most_1.3x_met"],
         "eigenvalue_accuracy_ratio_vs_reference_128_3d": round(
             d3["eigenvalue_diff_vs_reference_128"]
             / max(res["baseline"]["walker_3d"]["ours"]["eigenvalue_diff_vs_reference_128"],

@@ -177,7 +177,7 @@ class Engine:
                 f"chunkp{n}", [x, dt, p], [xe, ca.jacobian(xe, x), ca.jacobian(xe, p)],
                 ["x", "dt", "p"], ["x_end", "A", "B"],
             )
-        tag = ("planar" if planar else "walker3d") + ("" if effects else "-seed")
+        tag = ("planar" if planar else "walker3d") + ("" if effects else "_seed")
         dense = {name: _dense(fn) for name, fn in fns.items()}
         self.fns = compile_functions(tag, dense) if compiled else dense
         self.k = {name: Kernel(fn) for name, fn in self.fns.items()}

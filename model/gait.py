@@ -129,19 +129,25 @@ class Gait(Stability):
 
     @property
     def lean_amplitude(self) -> float:
-        """max |psi| over the period (rad)."""
-        return float(np.max(np.abs(self._series("psi"))))
+        """Half the peak-to-peak lean psi over a stride, in the physical frame (rad): max |psi|
+        for a step-periodic gait, about the mean lean for a stride-periodic one."""
+        return self._amplitude("psi")
 
     @property
     def steer_amplitude(self) -> float:
-        """max |phi| over the period (rad)."""
-        return float(np.max(np.abs(self._series("phi"))))
+        """Half the peak-to-peak steer phi over a stride, in the physical frame (rad): max |phi|
+        for a step-periodic gait, about the heading for a stride-periodic one."""
+        return self._amplitude("phi")
 
-    def _series(self, name: str) -> np.ndarray:
+    def _amplitude(self, name: str) -> float:
         if self.planar:
-            return np.zeros(1)
+            return 0.0
         index = {"phi": 0, "psi": 1}[name]
-        return np.concatenate([s.states[:, index] for s in self.steps])
+        if self.period == 1:  # the stride is the step and its mirror image
+            return float(np.max(np.abs(self.step.states[:, index])))
+        # The second step of a stride is described mirrored: its physical angles change sign.
+        series = np.concatenate([s.states[:, index] * s.side for s in self.steps])
+        return float(0.5 * (series.max() - series.min()))
 
     def dominant_components(self, k: int, n: int = 2) -> list[tuple[str, float]]:
         """The ``n`` state components with the largest share of eigenvector ``k`` (name, share).

@@ -23,7 +23,7 @@ class RollingResistance(Effect):
     unit = "N m s/rad"
     null = 0.0
     typical = 2e-4
-    bounds = (0.0, 0.05)
+    bounds = (0.0, 1.0)
     enters = "contact couple"
     physics = "viscous couple opposing the stance foot's rolling (tangential angular velocity)"
 
@@ -40,8 +40,8 @@ class PivotFriction(Effect):
     name = "pivot_friction"
     unit = "N m s/rad"
     null = 0.0
-    typical = 2e-4
-    bounds = (0.0, 0.05)
+    typical = 1e-3
+    bounds = (0.0, 1.0)
     enters = "contact couple"
     physics = "viscous couple about the ramp normal opposing the stance foot's spin"
 

@@ -45,7 +45,7 @@ class HipDamping(Effect):
     unit = "N m s/rad"
     null = 0.0
     typical = 2e-4
-    bounds = (0.0, 0.05)
+    bounds = (0.0, 1.0)
     enters = "equations of motion"
     physics = "viscous torque -c (theta_sw' - theta_st') at the hip hinge, reaction on the stance leg"
 
@@ -60,7 +60,7 @@ class HipCoulomb(Effect):
     unit = "N m"
     null = 0.0
     typical = 5e-4
-    bounds = (0.0, 0.05)
+    bounds = (0.0, 1.0)
     enters = "equations of motion"
     physics = ("dry-friction torque of magnitude T opposing the hinge's relative rate, smoothed "
                "below 0.01 sqrt(g/l)")

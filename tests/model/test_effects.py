@@ -450,3 +450,22 @@ def test_asymmetric_gait_collocation_equals_stride_shooting_and_walk_turns(toy):
     last = traj.events[-1]
     # A stable gait started on its fixed point stays on it: the drift is linear to 1e-8.
     assert_allclose([last.x, last.y], 20 * gait.stride_displacement, rtol=1e-8)
+
+
+def test_continuation_in_a_symmetry_breaking_effect_follows_stride_gaits(toy):
+    """Continuing in cross_slope follows fixed points of the stride map from the symmetric gait;
+    every point is a stride gait (residual of the stride map below the corrector's tolerance)."""
+    from toywalk.model.continuation import continue_branch
+
+    params, gait = toy
+    branch = continue_branch(params, "effects.cross_slope", 0.0, 0.004, max_points=30,
+                             z_start=gait.fixed_point)
+    assert branch.status == "reached" and branch.period == 2
+    assert len(branch.points) >= 3
+    for point in branch.points[1:]:
+        walker = Walker(params.replace(**{"effects.cross_slope": point.value}), period=2)
+        cycle = walker.cycle(point.fixed_point)
+        assert np.max(np.abs(cycle.z_plus - point.fixed_point)) < 1e-9
+    # The stride map of the symmetric start has the step map's eigenvalues squared.
+    assert_allclose(np.sort(np.abs(branch.points[0].eigenvalues)),
+                    np.sort(np.abs(gait.eigenvalues) ** 2), atol=1e-9)

@@ -87,3 +87,45 @@ def test_unknown_effect_is_refused(tmp_path):
     out = run("simulate", "--params", COMPASS, "--steps", "2", "--effect", "warp_drive=1",
               "--out", tmp_path / "t.csv")
     assert out.returncode == 2 and "unknown effect" in out.stderr
+
+
+STABLE_TOY = DATA / "params" / "stable-toy.toml"
+
+
+def test_effects_json_lists_the_library():
+    out = run("effects", "--json")
+    assert out.returncode == 0, out.stderr
+    rows = {r["name"]: r for r in json.loads(out.stdout)}
+    for name in ("hip_damping", "hip_coulomb", "rolling_resistance", "pivot_friction",
+                 "impact_trailing_share", "asymmetry", "cross_slope"):
+        assert {"unit", "null", "typical", "bounds", "enters", "breaks_symmetry",
+                "physics"} <= set(rows[name])
+    assert rows["asymmetry"]["breaks_symmetry"] and not rows["hip_damping"]["breaks_symmetry"]
+    text = run("effects")
+    assert text.returncode == 0 and "cross_slope" in text.stdout
+
+
+def test_gait_with_effects(tmp_path):
+    """--effect on gait: a symmetric effect changes the step-periodic gait; a symmetry-breaking one
+    makes it stride-periodic, and the output says so; a value outside the bounds is one line."""
+    base = json.loads(run("gait", "--params", STABLE_TOY, "--json").stdout)
+    damped = run("gait", "--params", STABLE_TOY, "--effect", "hip_damping=2e-4", "--json")
+    assert damped.returncode == 0, damped.stderr
+    damped = json.loads(damped.stdout)
+    assert damped["map"] == "step" and damped["step_time"] < 0.95 * base["step_time"]
+    tilted = run("gait", "--params", STABLE_TOY, "--effect", "effects.cross_slope=0.01")
+    assert tilted.returncode == 0, tilted.stderr
+    assert "a stride (two steps)" in tilted.stdout and "stride-map eigenvalues" in tilted.stdout
+    bad = run("gait", "--params", STABLE_TOY, "--effect", "hip_damping=-1")
+    assert bad.returncode == 2 and "physical bounds" in bad.stderr
+    assert len(bad.stderr.strip().splitlines()) == 1
+
+
+def test_continue_in_an_effect(tmp_path):
+    out = run("gait", "--params", STABLE_TOY, "--continue", "effects.hip_damping", "0", "1e-4",
+              "--points", "40", "--out", tmp_path / "branch.csv")
+    assert out.returncode == 0, out.stderr
+    lines = (tmp_path / "branch.csv").read_text().splitlines()
+    assert lines[0].startswith("effects.hip_damping,step_time")
+    values = [float(line.split(",")[0]) for line in lines[1:]]
+    assert values[0] == 0.0 and values[-1] == 1e-4 and len(values) >= 3
