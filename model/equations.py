@@ -355,10 +355,13 @@ def _collision_exprs(sym: Symbolic) -> dict[str, ca.SX]:
         # axis . omega_2+ = 0. A plastic projection (Carnot), so its blends with an admissible law
         # never gain energy (kinetic energy is convex in the rates); impulses blend alike.
         _, a_plain, b_plain = jump_conditions(0)
-        row = ca.jacobian(ca.dot(arrest.axis, after["w2"]), up)
-        column = ca.vertcat(-arrest.axis, 0)
-        kkt = ca.vertcat(ca.horzcat(a_plain, column), ca.horzcat(row, ca.SX.zeros(1, 1)))
-        arrested = ca.solve(kkt, ca.vertcat(b_plain, 0))[:lay.nq]
+        if lay.planar:  # omega . e_z vanishes identically there: the arrest is already enforced
+            arrested = ca.solve(a_plain, b_plain)
+        else:
+            row = ca.jacobian(ca.dot(arrest.axis, after["w2"]), up)
+            column = ca.vertcat(-arrest.axis, 0)
+            kkt = ca.vertcat(ca.horzcat(a_plain, column), ca.horzcat(row, ca.SX.zeros(1, 1)))
+            arrested = ca.solve(kkt, ca.vertcat(b_plain, 0))[:lay.nq]
         k = arrest.strength
         u_plus = u_plus + k * (arrested - u_plus)
         lead = (1 - k) * lead + k * ca.substitute(normal_total, up, arrested)

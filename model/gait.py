@@ -268,9 +268,9 @@ def _state_scale(params: Params) -> np.ndarray:
 
 
 def _make_gait(walker: Walker, z: np.ndarray, iterations: int) -> Gait:
-    step = walker.cycle(z, jacobian=True, record=True)
+    cycle = walker.cycle(z, jacobian=True, record=True)
     active = [4, 5, 6, 7] if walker.planar else list(range(8))
-    jac = step.jacobian
+    jac = cycle.jacobian
     vals, vecs = np.linalg.eig(jac)
     if walker.planar:  # the lateral block is absent: report zeros there, eigenvectors of the block
         sub_vals, sub_vecs = np.linalg.eig(jac[np.ix_(active, active)])
@@ -279,11 +279,11 @@ def _make_gait(walker: Walker, z: np.ndarray, iterations: int) -> Gait:
         vecs[np.ix_(active, range(4))] = sub_vecs
         vecs[np.arange(4), np.arange(4, 8)] = 1.0
     order = np.argsort(-np.abs(vals), kind="stable")
-    residual = float(np.max(np.abs(step.z_plus - z)))
+    residual = float(np.max(np.abs(cycle.z_plus - z)))
     return Gait(params=walker.params, planar=walker.planar, fixed_point=z.copy(),
-                step_time=step.time / walker.period, step=step.steps[0], eigenvalues=vals[order],
-                eigenvectors=vecs[:, order], residual=residual, iterations=iterations,
-                steps=step.steps)
+                step_time=cycle.time / walker.period, step=cycle.steps[0], eigenvalues=vals[order],
+                eigenvectors=vecs[:, order], residual=residual,
+                iterations=iterations, steps=cycle.steps)
 
 
 def _planar_starts(params: Params):

@@ -310,19 +310,20 @@ class Walker:
         return self._step_internal(x0, jacobian or params_jacobian, params_jacobian, record, side)
 
     def cycle(self, z0: np.ndarray, jacobian: bool = False, params_jacobian: bool = False,
-              record: bool = False) -> Cycle:
+              record: bool = False, steps: int | None = None) -> Cycle:
         """The map whose fixed points are gaits: the step map, or the stride map P_R o P_L (left
-        leg in stance first) when ``period`` is 2. Mirroring twice restores the description, so a
-        stride's end state is in the frame of z0."""
-        steps, z = [], np.asarray(z0, dtype=float)
-        for i in range(self.period):
-            steps.append(self.step(z, jacobian, params_jacobian, record, side=1 if i % 2 == 0 else -1))
-            z = steps[-1].z_plus
-        out = Cycle(z_plus=z, time=sum(s.step_time for s in steps), steps=steps)
+        leg in stance first) when ``period`` is 2 (or ``steps`` says so). Mirroring twice restores
+        the description, so a stride's end state is in the frame of z0."""
+        n_steps = self.period if steps is None else steps
+        done, z = [], np.asarray(z0, dtype=float)
+        for i in range(n_steps):
+            done.append(self.step(z, jacobian, params_jacobian, record, side=1 if i % 2 == 0 else -1))
+            z = done[-1].z_plus
+        out = Cycle(z_plus=z, time=sum(s.step_time for s in done), steps=done)
         if jacobian or params_jacobian:
             jac, grad = np.eye(8), np.zeros(8)
             jac_p = np.zeros((8, N_PARAMS)) if params_jacobian else None
-            for s in steps:
+            for s in done:
                 grad = grad + s.time_gradient @ jac
                 if params_jacobian:
                     jac_p = s.jacobian @ jac_p + s.jacobian_params
@@ -459,15 +460,14 @@ class Walker:
             )
 
     def stride(self, z0: np.ndarray, jacobian: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
-        """The stride map P o P (the seed's map f, collision to the next collision of the same foot).
+        """The stride map P_R o P_L (the seed's map f, collision to the next collision of the same
+        foot), whatever the walker's ``period``.
 
         Returns ``(z_2, J)``: the state after two steps, shape (8,), and dz_2/dz0 (8, 8) or None.
         Mirroring twice restores the original description, so z_2 is in the frame of z0.
         """
-        first = self.step(z0, jacobian=jacobian)
-        second = self.step(first.z_plus, jacobian=jacobian, side=-1)
-        jac = second.jacobian @ first.jacobian if jacobian else None
-        return second.z_plus, jac
+        out = self.cycle(z0, jacobian=jacobian, steps=2)
+        return out.z_plus, out.jacobian
 
     def _partial(self, blocks):
         if blocks is None:

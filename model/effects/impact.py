@@ -61,6 +61,5 @@ class ImpactSpinArrest(Effect):
                "arrests a fraction k of its spin")
 
     def arrest(self, k, ctx):
-        if ctx.planar:  # no spin in the planar reduction
-            return None
+        # In the planar reduction there is no spin: the arrested law is the seed's plastic law.
         return Arrest(strength=k, axis=ctx.ez)

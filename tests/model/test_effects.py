@@ -469,3 +469,56 @@ def test_continuation_in_a_symmetry_breaking_effect_follows_stride_gaits(toy):
     # The stride map of the symmetric start has the step map's eigenvalues squared.
     assert_allclose(np.sort(np.abs(branch.points[0].eigenvalues)),
                     np.sort(np.abs(gait.eigenvalues) ** 2), atol=1e-9)
+
+
+def test_stride_jacobians_with_symmetry_breaking_effects_match_finite_differences(toy):
+    """Unequal legs and a tilted ramp: the stride map's AD Jacobian (two steps, both sides) and its
+    columns for the two symmetry-breaking strengths against central differences."""
+    params, gait = toy
+    on = params.replace(**{"effects.asymmetry": 0.003, "effects.cross_slope": 0.005})
+    walker = Walker(on)
+    assert walker.period == 2
+    z = gait.fixed_point
+    cycle = walker.cycle(z, params_jacobian=True)
+    scale = np.array([1.0, 1.0 / params.time_scale] * 4)
+    fd = np.zeros((8, 8))
+    for i in range(8):
+        dz = np.zeros(8)
+        dz[i] = 1e-6 * scale[i]
+        fd[:, i] = (walker.cycle(z + dz).z_plus - walker.cycle(z - dz).z_plus) / (2 * dz[i])
+    # Central differences at h ~ 1e-6 through two steps: truncation ~1e-12 |P'''|, round-off ~1e-10.
+    assert_allclose(cycle.jacobian, fd, atol=2e-6 * np.abs(fd).max())
+    for name in ("asymmetry", "cross_slope"):
+        key = f"effects.{name}"
+        h = 1e-6
+        up = Walker(on.replace(**{key: on.get(key) + h})).cycle(z)
+        down = Walker(on.replace(**{key: on.get(key) - h})).cycle(z)
+        fd_p = (up.z_plus - down.z_plus) / (2 * h)
+        k = PARAMETER_NAMES.index(key)
+        assert_allclose(cycle.jacobian_params[:, k], fd_p, atol=1e-6 * np.abs(fd_p).max(), err_msg=name)
+        assert np.abs(fd_p).max() > 0
+
+
+def test_planar_reduction_carries_the_symmetric_effects():
+    """For a planar-symmetric walker the planar system's right-hand side and collision with
+    hip, rolling and impact effects on equal the 3D system's at phi = psi = 0: the planar
+    reduction is exact with effects too (and pivot friction, spin arrest vanish there)."""
+    params = Params(**{**GENERAL, "hip_width": 0.0, "com_offset": (-0.005, 0.0, -0.11),
+                       "inertia": (2e-4, 3e-4, 2e-4, 0.0, 2e-5, 0.0)}, **FEET["sphere"])
+    on = params.replace(**{"effects.hip_damping": 1e-3, "effects.hip_coulomb": 1e-3,
+                           "effects.rolling_resistance": 1e-3, "effects.pivot_friction": 1e-3,
+                           "effects.impact_trailing_share": 0.2, "effects.impact_spin_arrest": 0.5})
+    planar, full = Walker(on, planar=True), Walker(on)
+    rng = np.random.default_rng(16)
+    for _ in range(5):
+        th1, th2 = rng.uniform(-0.3, 0.3, 2)
+        w1, w2 = rng.normal(0, 2, 2)
+        xp = np.array([th1, th2, w1, w2, 0.0])
+        x3 = np.array([0, 0, th1, th2, 0, 0, w1, w2, 0, 0])
+        rhs3 = full.rhs(x3)
+        assert_allclose(planar.rhs(xp)[2:4], rhs3[6:8], rtol=1e-12, atol=1e-12)
+        assert_allclose(rhs3[4:6], 0.0, atol=1e-12)
+        assert_allclose(planar.dissipation(xp), full.dissipation(x3), rtol=1e-12, atol=1e-15)
+        c3 = full.eng.k["collision"](x3, full.p)[0].ravel()
+        cp = planar.eng.k["collision"](xp, planar.p)[0].ravel()
+        assert_allclose(cp[:4], c3[[2, 3, 6, 7]], rtol=1e-11, atol=1e-12)
