@@ -32,7 +32,7 @@ from .gait import Stability
 from .parameters import N_INPUT, Params, view
 from .walker import Walker
 
-__all__ = ["CollocationGait", "solve_collocation"]
+__all__ = ["BVP", "CollocationGait", "bvp", "cycle_jacobian", "initial_guess", "solve_collocation"]
 
 
 @dataclasses.dataclass
@@ -79,8 +79,25 @@ class CollocationGait(Stability):
     multipliers: np.ndarray
 
 
-@dataclasses.dataclass
-class _Problem:
+@dataclasses.dataclass(eq=False)  # one object per (system, mesh, period): hashed by identity
+class BVP:
+    """The periodic-gait boundary value problem of one system, mesh and period, built once.
+
+    Attributes
+    ----------
+    solver : casadi.Function
+        IPOPT on the square feasibility problem (x = w, p = the parameter input).
+    constraints : casadi.Function
+        ``(w, p) -> g``: collocation and continuity, guards, periodicity, then the inequalities;
+        ``lbg <= g <= ubg``.
+    n_dyn, n_int, degree, phases : int
+        Dynamic state size, mesh intervals per step, collocation degree, steps per period.
+    tau : ndarray, shape (degree,)
+        Gauss-Legendre points in (0, 1).
+    jac_fun : casadi.Function
+        ``(w, p) -> dg/dw``.
+    """
+
     solver: ca.Function
     constraints: ca.Function  # (w, p) -> g
     n_dyn: int
@@ -102,6 +119,26 @@ class _Problem:
         """Collocation and continuity equations of one step, then its guard h = 0."""
         return self.n_int * self.n_dyn * (self.degree + 1) + 1
 
+    @property
+    def n_equalities(self) -> int:
+        """The equality constraints (they come first in g): as many as decision variables."""
+        return self.phases * (self.phase_equations + self.n_dyn)
+
+    def duration_index(self, phase: int) -> int:
+        """Index in w of the step's duration T."""
+        return phase * self.phase_size
+
+    def state_index(self, phase: int, interval: int, point: int) -> int:
+        """Index in w of the first component of a state: ``point`` 0 is the interval's start (the
+        previous interval's end), 1..degree its collocation points."""
+        base = phase * self.phase_size + 1
+        if point == 0:
+            if interval == 0:
+                return base
+            return base + self.n_dyn + (interval - 1) * self.n_dyn * (self.degree + 1) \
+                + self.n_dyn * self.degree
+        return base + self.n_dyn + interval * self.n_dyn * (self.degree + 1) + (point - 1) * self.n_dyn
+
 
 def _phase_input(p: ca.MX, phase: int) -> ca.MX:
     """The parameter input of a stride's step: the left leg in stance first, then the right."""
@@ -109,7 +146,8 @@ def _phase_input(p: ca.MX, phase: int) -> ca.MX:
 
 
 @cache
-def _problem(planar: bool, n_intervals: int, degree: int, phases: int = 1) -> _Problem:
+def bvp(planar: bool, n_intervals: int = 30, degree: int = 4, phases: int = 1) -> BVP:
+    """The (cached) periodic-gait BVP of the 3D or planar system over ``phases`` steps."""
     lay = layout(planar)
     nd = lay.n_dyn
     base = build_functions(planar)
@@ -191,12 +229,12 @@ def _problem(planar: bool, n_intervals: int, degree: int, phases: int = 1) -> _P
     solver = ca.nlpsol("gait_collocation", "ipopt", nlp, opts)
     constraints = ca.Function("g", [w, p], [g])
     jac_fun = ca.Function("dg", [w, p], [ca.jacobian(g, w)])
-    return _Problem(solver=solver, constraints=constraints, n_dyn=nd, n_int=n_intervals,
+    return BVP(solver=solver, constraints=constraints, n_dyn=nd, n_int=n_intervals,
                     degree=degree, phases=phases, lbg=np.array(lb), ubg=np.array(ub), tau=tau,
                     jac_fun=jac_fun)
 
 
-def _initial_guess(walker: Walker, z0: np.ndarray, prob: _Problem) -> np.ndarray:
+def initial_guess(walker: Walker, z0: np.ndarray, prob: BVP) -> np.ndarray:
     """Collocation variables from a forward simulation of one period from z0 (states at the
     collocation times by cubic Hermite interpolation of the recorded integration grid)."""
     from scipy.interpolate import CubicHermiteSpline
@@ -244,12 +282,12 @@ def solve_collocation(params: Params, z_guess: np.ndarray | None = None, planar:
         ``success`` False (with IPOPT's status) if it did not converge; never raises for that.
     """
     walker = Walker(params, planar=planar)
-    prob = _problem(planar, n_intervals, degree, walker.period)
+    prob = bvp(planar, n_intervals, degree, walker.period)
     p = params.input_vector()
     if warm_start is not None:
         w0, lam0 = warm_start.solution, warm_start.multipliers
     elif z_guess is not None:
-        w0, lam0 = _initial_guess(walker, np.asarray(z_guess, float), prob), None
+        w0, lam0 = initial_guess(walker, np.asarray(z_guess, float), prob), None
     else:
         raise ValueError("solve_collocation needs z_guess or warm_start")
     kwargs = dict(x0=w0, p=p, lbg=prob.lbg, ubg=prob.ubg)
@@ -264,7 +302,7 @@ def solve_collocation(params: Params, z_guess: np.ndarray | None = None, planar:
     nd = prob.n_dyn
     times, states = _trajectory(w, prob)
     x0 = w[1:1 + nd]
-    jac = _cycle_jacobian(w, p, prob, walker)
+    jac = cycle_jacobian(w, p, prob, walker)
     vals = np.linalg.eigvals(jac[np.ix_(_active(planar), _active(planar))]) if planar else \
         np.linalg.eigvals(jac)
     if planar:
@@ -284,7 +322,7 @@ def _active(planar: bool) -> list[int]:
     return [4, 5, 6, 7] if planar else list(range(8))
 
 
-def _trajectory(w: np.ndarray, prob: _Problem) -> tuple[np.ndarray, np.ndarray]:
+def _trajectory(w: np.ndarray, prob: BVP) -> tuple[np.ndarray, np.ndarray]:
     """Mesh and collocation times (s, from the start of the period) and the states there."""
     nd, d = prob.n_dyn, prob.degree
     times, states = [], []
@@ -308,7 +346,7 @@ def _trajectory(w: np.ndarray, prob: _Problem) -> tuple[np.ndarray, np.ndarray]:
     return np.array(times), np.array(states)
 
 
-def _cycle_jacobian(w: np.ndarray, p: np.ndarray, prob: _Problem, walker: Walker) -> np.ndarray:
+def cycle_jacobian(w: np.ndarray, p: np.ndarray, prob: BVP, walker: Walker) -> np.ndarray:
     """dP/dz by the implicit-function theorem on each step's collocation and guard equations.
 
     Per step: unknowns y = (T, interior states, end state), parameters x0; equations collocation

@@ -1,4 +1,4 @@
-"""Continuation of gait families in any parameter, with folds and stability changes located.
+"""Continuation of gait families in any parameter, reporting folds and locating stability changes.
 
 Pseudo-arclength continuation (Keller 1977; Allgower & Georg, *Introduction to Numerical
 Continuation Methods*, SIAM 2003, ch. 2) of the fixed points of the step map: the unknowns are the
@@ -7,7 +7,8 @@ arclength condition. Both derivatives come exact from :meth:`Walker.step` (AD th
 guard time and collision, ``params_jacobian``). The step length adapts to the corrector's
 convergence. Along the branch the code reports:
 
-- **folds** (limit points), where dmu/ds changes sign: the branch turns back (two gaits merge);
+- **folds** (limit points), where dmu/ds changes sign: the branch turns back (two gaits merge).
+  A fold is reported at the first branch point past it, not refined;
 - **stability changes**, where max |lambda| crosses 1, classified by the eigenvalue that leaves
   the unit circle: through +1 (fold or symmetry breaking), through -1 (period doubling), or as a
   complex pair (Neimark-Sacker). Each is refined by the secant method on max |lambda| - 1 with
@@ -43,6 +44,8 @@ class BranchPoint(Stability):
     eigenvalues: np.ndarray
     lean_amplitude: float
     period: int = 1
+    steer_amplitude: float = 0.0
+    heading: float = 0.0
 
 
 @dataclasses.dataclass
@@ -66,7 +69,8 @@ class Branch:
     events : list of BranchEvent
     status : str
         ``"reached"`` (the end value), ``"stalled"`` (the step length fell below its minimum; the
-        message says where) or ``"max_points"``.
+        message says where and why), ``"turned back"`` (past a fold, the branch returned below
+        the start value) or ``"max_points"``.
     message : str
     planar : bool
     period : int
@@ -83,14 +87,15 @@ class Branch:
     period: int = 1
 
     def table(self) -> tuple[list[str], np.ndarray]:
-        """(column names, rows): value, step time, stride length, max|lambda|, stable, lean
-        amplitude, the fixed point's eight components."""
+        """(column names, rows): value, step time, stride length, max|lambda|, stable, lean and
+        steer amplitudes, heading, the fixed point's eight components."""
         from .walker import STATE_NAMES
 
         cols = [self.name, "step_time", "stride_length", "max_abs_eigenvalue", "stable",
-                "lean_amplitude", *STATE_NAMES]
+                "lean_amplitude", "steer_amplitude", "heading", *STATE_NAMES]
         rows = np.array([[p.value, p.step_time, p.stride_length, p.max_abs_eigenvalue,
-                          float(p.stable), p.lean_amplitude, *p.fixed_point] for p in self.points])
+                          float(p.stable), p.lean_amplitude, p.steer_amplitude, p.heading,
+                          *p.fixed_point] for p in self.points])
         return cols, rows
 
 
@@ -103,7 +108,8 @@ def _index(name: str) -> int:
 def _point(gait: Gait, value: float) -> BranchPoint:
     return BranchPoint(value=value, fixed_point=gait.fixed_point.copy(), step_time=gait.step_time,
                        stride_length=gait.stride_length, eigenvalues=gait.eigenvalues.copy(),
-                       lean_amplitude=gait.lean_amplitude, period=gait.period)
+                       lean_amplitude=gait.lean_amplitude, period=gait.period,
+                       steer_amplitude=gait.steer_amplitude, heading=gait.heading)
 
 
 def continue_branch(params: Params, name: str, start: float, end: float, max_points: int = 200,
@@ -218,12 +224,15 @@ def continue_branch(params: Params, name: str, start: float, end: float, max_poi
             add_point(_point(final, end))
             status, message = "reached", f"reached {name} = {end:.6g}"
             break
-        yc, ok, its = predicted.copy(), False, 0
+        yc, ok, its, refused = predicted.copy(), False, 0, None
         for _ in range(_MAXIT):
             its += 1
             try:
                 f, jac = residual(yc)
-            except (StepFailure, ParameterError):  # a fall, or a parameter out of its range
+            except StepFailure:  # a fall
+                break
+            except ParameterError as err:  # the parameter left its valid range
+                refused = str(err)
                 break
             g = np.concatenate([f, [tangent @ (yc - predicted)]])
             if np.max(np.abs(f)) < _TOL:
@@ -238,9 +247,10 @@ def continue_branch(params: Params, name: str, start: float, end: float, max_poi
             ds *= 0.5
             if ds < ds_min:
                 status = "stalled"
+                why = (f"the branch leaves the parameter's valid range ({refused})" if refused else
+                       "the gait may end there: a fall or a grazing heel strike")
                 message = (f"the corrector failed below the minimum step near {name} = "
-                           f"{y[-1] * scale:.6g} (the gait may end there: a fall or a grazing "
-                           "heel strike)")
+                           f"{y[-1] * scale:.6g} ({why})")
                 break
             continue
         new_tangent = null_vector(jac, tangent)

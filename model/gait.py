@@ -23,6 +23,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from .effects import EFFECTS
 from .parameters import Params
 from .walker import STATE_NAMES, Step, StepFailure, Walker, is_planar_symmetric
 
@@ -369,18 +370,18 @@ def find_gait(params: Params, z_guess: np.ndarray | None = None, planar: bool | 
     walker = Walker(params, planar=planar, steps_per_time_unit=steps_per_time_unit)
     if z_guess is not None:
         return solve_fixed_point(walker, z_guess)
-    if params.breaks_symmetry:
-        # A stride-periodic gait: the symmetric walker's gait first, then the symmetry-breaking
-        # effects raised from null along the stride map's fixed points.
-        symmetric = _symmetric_part(params)
-        base = find_gait(symmetric, planar=planar, steps_per_time_unit=steps_per_time_unit)
+    if any(value != EFFECTS[name].null for name, value in params.effects.items()):
+        # Effects on: the seed model's gait first, then the effects raised from null along the
+        # gaits (the stride map's fixed points where an effect breaks the mirror symmetry).
+        seed = _without_effects(params)
+        base = find_gait(seed, planar=planar, steps_per_time_unit=steps_per_time_unit)
         try:
-            return continue_gait(symmetric, params, base.fixed_point, steps_per_time_unit,
+            return continue_gait(seed, params, base.fixed_point, steps_per_time_unit,
                                  planar=base.planar)
         except GaitNotFound as err:
             raise GaitNotFound(
-                f"the symmetric walker walks (step time {base.step_time:.4g} s) but its gait does "
-                f"not follow to these symmetry-breaking effects: {err}"
+                f"the walker without effects walks (step time {base.step_time:.4g} s) but its gait "
+                f"does not follow to these effects: {err}"
             ) from err
     reduced = planar_reduction(params)
     planar_walker = Walker(reduced, planar=True, steps_per_time_unit=steps_per_time_unit)
@@ -441,10 +442,13 @@ def continue_gait(start: Params, end: Params, z_start: np.ndarray, steps_per_tim
     return gait
 
 
+def _without_effects(params: Params) -> Params:
+    """``params`` with every effect at its null value (the seed's model)."""
+    return params.replace(**{f"effects.{k}": EFFECTS[k].null for k in params.effects})
+
+
 def _symmetric_part(params: Params) -> Params:
     """``params`` with every symmetry-breaking effect at its null value."""
-    from .effects import EFFECTS
-
     return params.replace(**{f"effects.{k}": EFFECTS[k].null for k in params.effects
                              if EFFECTS[k].breaks_symmetry})
 

@@ -165,7 +165,7 @@ def _write_branch(branch, out: Path) -> None:
     for row in rows:
         writer.writerow([repr(float(v)) for v in row])
     info = {"parameter": branch.name, "status": branch.status, "message": branch.message,
-            "planar": branch.planar,
+            "planar": branch.planar, "map": "step" if branch.period == 1 else "stride",
             "events": [{"kind": e.kind, "value": e.value, "detail": e.detail} for e in branch.events]}
     png = out.with_suffix(".png")
     files = {out: buf.getvalue(), out.with_suffix(".json"): json.dumps(info, indent=2) + "\n"}
@@ -198,7 +198,7 @@ def _plot_branch(branch, rows, path: Path) -> None:
     axes[0].plot(x[stable], rows[stable, 3], "o", ms=3, label="stable")
     axes[0].plot(x[~stable], rows[~stable, 3], "x", ms=4, label="unstable")
     axes[0].axhline(1.0, color="k", lw=0.8, ls="--")
-    axes[0].set_ylabel("step map max |eigenvalue|")
+    axes[0].set_ylabel(f"{'step' if branch.period == 1 else 'stride'} map max |eigenvalue|")
     axes[0].legend(loc="best", fontsize=8)
     axes[1].plot(x, rows[:, 1], "-o", ms=3)
     axes[1].set_ylabel("step time (s)")
@@ -369,6 +369,7 @@ _COMMAND_MODULES = (
     "toywalk.sysid.cmd_calibrate",
     "toywalk.sysid.cmd_render",
     "toywalk.sysid.cmd_track",
+    "toywalk.sysid.cmd_fit",
 )
 
 

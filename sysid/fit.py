@@ -1,0 +1,478 @@
+"""Fit the walker's parameters to a measured walk: the gait BVP and the data in one IPOPT problem.
+
+The unknowns are the periodic gait's collocation variables ``w`` (model/collocation.py), the
+free parameters ``theta`` (any names of :data:`toywalk.model.parameters.PARAMETER_NAMES`, effect
+strengths included) and the nuisance offsets ``o`` (:data:`toywalk.sysid.measurement.OFFSETS`).
+The problem is
+
+    minimise   1/2 sum_i ((A w + B o - y)_i / sigma_i)^2 + 1/2 sum_k ((T_k(w) - d_k) / sigma_k)^2
+    subject to g(w, theta) = 0    (collocation, guard, periodicity with the collision)
+               theta within its physical bounds
+
+with ``A``, ``B`` the measurement model's linear operators, ``y`` the measured angles and ``d`` the
+measured step durations (:mod:`toywalk.sysid.measurement`). Because the gait is a constraint, not
+a forward simulation, the fit works for gaits too unstable to simulate (Biegler, *Nonlinear
+Programming*, SIAM 2010, ch. 10; the simultaneous approach of opty, Moore & van den Bogert 2018).
+
+Uncertainty: the Gauss-Newton covariance ``(J^T J)^-1`` of the whitened residuals, with ``J`` the
+total derivative of the residuals in (theta, o) through the BVP (implicit-function theorem on
+``g``), cross-checked column by column against central differences that re-solve the BVP. When the
+trajectory file gives no standard deviations, each signal's is estimated from the residuals of a
+first fit and the fit is repeated (so the reduced chi-square is one by construction).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import warnings
+from functools import cache
+
+import casadi as ca
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import splu
+from toywalk.model.collocation import BVP, bvp, cycle_jacobian, initial_guess
+from toywalk.model.effects import EFFECTS
+from toywalk.model.gait import GaitNotFound, find_gait, solve_fixed_point
+from toywalk.model.parameters import INPUT_NAMES, PARAMETER_NAMES, ParameterError, Params
+from toywalk.model.trajectory import SIGNALS, TrajectoryTable
+from toywalk.model.walker import STATE_NAMES, Walker
+
+from .measurement import OFFSETS, MeasurementError, Observations, observations, operator
+
+__all__ = ["FitError", "FitResult", "fit"]
+
+#: Noise SD (rad) assumed for the first pass when the file gives none; the second pass uses the
+#: per-signal RMS of the first pass's residuals.
+_FIRST_PASS_SD = 0.01
+#: Phase bins of the residual summary.
+_PHASE_BINS = 10
+#: Identifiability: a direction of the free parameters (scaled to unit column norms) whose
+#: singular value is below this fraction of the largest is reported as not determined.
+_NEAR_SINGULAR = 1e-6
+# Parameters that must stay inside (low, high); lengths and masses are >= 0.
+_BASE_BOUNDS = {
+    "leg_length": (0.0, math.inf), "foot_radius": (0.0, math.inf),
+    "foot_lateral_radius": (0.0, math.inf), "hip_width": (0.0, math.inf),
+    "leg_mass": (0.0, math.inf), "axle_mass": (0.0, math.inf), "slope": (-math.pi / 2, math.pi / 2),
+    "gravity": (0.0, math.inf), "inertia[0]": (0.0, math.inf), "inertia[1]": (0.0, math.inf),
+    "inertia[2]": (0.0, math.inf),
+}
+
+
+class FitError(ValueError):
+    """The fit cannot be set up (bad names, unusable data, no starting gait)."""
+
+
+@dataclasses.dataclass
+class FitResult:
+    """Estimates, uncertainty, residuals and the fitted gait.
+
+    Attributes
+    ----------
+    free : list of str
+        The fitted parameters (PARAMETER_NAMES names).
+    estimates, std : dict of str to float
+        Estimates and standard errors of the free parameters and the nuisance offsets.
+    covariance, correlation : ndarray, shape (n, n)
+        Over ``free`` then :data:`OFFSETS` (``names``).
+    names : list of str
+    noise_sd : dict of str to float
+        Noise SD per signal (rad) used in the final pass; ``noise_source`` says where it came from.
+    residual_rms : dict of str to float
+        RMS residual per signal (rad), and of the step durations (s).
+    residual_rms_by_phase : dict of str to list of float
+        RMS residual per signal in ``_PHASE_BINS`` bins of the step phase.
+    chi2 : float
+        Sum of squared whitened residuals; ``n_residuals`` of them.
+    success : bool
+    status : str
+        IPOPT's return status.
+    params : Params
+        The walker with the estimates.
+    gait : dict
+        The fitted gait: fixed point (public names), step times, eigenvalues, max |eigenvalue|,
+        map (step or stride).
+    warnings : list of str
+        Identifiability, bounds and cross-check findings, with numbers.
+    jacobian_check : dict
+        Largest relative difference between the AD and the finite-difference residual Jacobian
+        per free parameter.
+    """
+
+    free: list
+    estimates: dict
+    std: dict
+    covariance: np.ndarray
+    correlation: np.ndarray
+    names: list
+    noise_sd: dict
+    noise_source: str
+    residual_rms: dict
+    residual_rms_by_phase: dict
+    chi2: float
+    n_residuals: int
+    success: bool
+    status: str
+    iterations: int
+    params: Params
+    gait: dict
+    warnings: list
+    jacobian_check: dict
+    solution: np.ndarray = dataclasses.field(repr=False, default=None)
+
+    def to_json(self) -> dict:
+        """JSON-ready dictionary (pipeline.md's fit file: estimates, std, covariance, ...)."""
+        return {
+            "status": self.status, "success": self.success, "iterations": self.iterations,
+            "free": self.free, "estimates": self.estimates, "std": self.std,
+            "names": self.names, "covariance": self.covariance.tolist(),
+            "correlation": self.correlation.tolist(),
+            "noise_sd": self.noise_sd, "noise_source": self.noise_source,
+            "residual_rms": self.residual_rms, "residual_rms_by_phase": self.residual_rms_by_phase,
+            "chi2": self.chi2, "n_residuals": self.n_residuals,
+            "reduced_chi2": self.chi2 / max(self.n_residuals - len(self.names), 1),
+            "gait": self.gait, "warnings": self.warnings, "jacobian_check": self.jacobian_check,
+            "params": self.params.to_dict(),
+            "units": {"angles": "rad", "durations": "s", "parameters": "SI (pipeline.md)"},
+        }
+
+
+# --------------------------------------------------------------------------------- set-up
+def _check_free(params: Params, free) -> list[str]:
+    names = list(free)
+    for name in names:
+        if name not in PARAMETER_NAMES:
+            raise FitError(f"cannot fit {name!r}: not a parameter; names are those of a parameter "
+                           f"file ({', '.join(PARAMETER_NAMES[:3])}, ..., com_offset[1], "
+                           "effects.hip_damping, ...)")
+    if len(set(names)) != len(names):
+        raise FitError(f"a parameter is named twice in {names}")
+    return names
+
+
+def _bounds(params: Params, name: str) -> tuple[float, float]:
+    if name.startswith("effects."):
+        return EFFECTS[name.split(".", 1)[1]].bounds
+    low, high = _BASE_BOUNDS.get(name, (-math.inf, math.inf))
+    if name in ("foot_radius", "foot_lateral_radius"):
+        high = params.leg_length * (1 - 1e-9)
+    return low, high
+
+
+def _scale(params: Params, name: str) -> float:
+    """A magnitude for each free parameter, so that IPOPT sees unknowns of order one."""
+    value = abs(params.get(name))
+    if name.startswith("effects."):
+        return max(value, abs(EFFECTS[name.split(".", 1)[1]].typical))
+    if name.startswith("inertia"):
+        return max(value, 0.01 * max(abs(v) for v in params.inertia) or 1e-6)
+    if name in ("slope",):
+        return max(value, 0.01)
+    if name in ("leg_mass", "axle_mass"):
+        return max(value, 0.1 * params.total_mass)
+    return max(value, 0.01 * params.leg_length)  # lengths
+
+
+def _period(params: Params, free: list[str]) -> int:
+    breaking = any(n.startswith("effects.") and EFFECTS[n.split(".", 1)[1]].breaks_symmetry for n in free)
+    return 2 if breaking or params.breaks_symmetry else 1
+
+
+_PLANAR_BREAKERS = {"com_offset[1]", "inertia[3]", "inertia[5]", "hip_width", "effects.cross_slope"}
+
+
+def _start(params: Params, period: int, free: list[str], z_guess):
+    """The starting gait: planar only when the walker is and stays planar (a point-mass limit)."""
+    try:
+        gait = find_gait(params) if z_guess is None else None
+        planar = gait.planar if gait is not None else False
+        if planar and _PLANAR_BREAKERS & set(free):
+            raise FitError("this walker is solved in its planar reduction (a point-mass limit): "
+                           f"{sorted(_PLANAR_BREAKERS & set(free))} cannot be fitted")
+        z0 = gait.fixed_point if gait is not None else np.asarray(z_guess, float)
+        walker = Walker(params, planar=planar, period=period)
+        if gait is None or gait.period != period:
+            gait = solve_fixed_point(walker, z0)
+    except GaitNotFound as err:
+        raise FitError(f"no gait for the starting parameters: {err}") from err
+    return walker, gait
+
+
+@cache
+def _equality_jacobians(prob: BVP) -> ca.Function:
+    """``(w, p) -> (dg/dw, dg/dp)`` of the BVP's equality constraints."""
+    w = ca.MX.sym("w", prob.phases * prob.phase_size)
+    p = ca.MX.sym("p", len(INPUT_NAMES))
+    g = prob.constraints(w, p)[:prob.n_equalities]
+    return ca.Function("bvp_jac", [w, p], [ca.jacobian(g, w), ca.jacobian(g, p)])
+
+
+def _sparse(m: ca.DM) -> sp.csc_matrix:
+    col_ptr, row_idx = (np.array(v) for v in m.sparsity().get_ccs())
+    return sp.csc_matrix((np.array(m.nonzeros()), row_idx, col_ptr), shape=m.shape)
+
+
+# ------------------------------------------------------------------------------------ fit
+def fit(table: TrajectoryTable, params: Params, free, *, offsets: bool = True,
+        n_intervals: int = 30, degree: int = 4, z_guess=None, max_iter: int = 500) -> FitResult:
+    """Fit ``free`` parameters of ``params`` to the measured walk ``table``.
+
+    Parameters
+    ----------
+    table : TrajectoryTable
+        The measured walk (``toywalk track`` or ``toywalk simulate`` output, or any file in the
+        pipeline.md format); a simulation's ``source`` metadata is never read.
+    params : Params
+        The walker: the starting point, and the values of everything not free.
+    free : sequence of str
+        Names to fit (``foot_radius``, ``com_offset[1]``, ``effects.impact_trailing_share``).
+    offsets : bool
+        Fit the ramp-frame offsets of lean, steer and pitch (nuisance parameters).
+    n_intervals, degree : int
+        Collocation mesh per step.
+    z_guess : ndarray, shape (8,), optional
+        A start near the gait (default: :func:`toywalk.model.gait.find_gait`).
+    max_iter : int
+        IPOPT's iteration cap.
+
+    Raises
+    ------
+    FitError
+        Bad names, unusable measurements or no starting gait (the message says which).
+    """
+    if not isinstance(params, Params):
+        raise TypeError(f"params must be a Params, got {type(params).__name__}")
+    free = _check_free(params, free)
+    try:
+        obs = observations(table)
+    except MeasurementError as err:
+        raise FitError(str(err)) from err
+    period = _period(params, free)
+    walker, gait = _start(params, period, free, z_guess)
+    planar = walker.planar
+    prob = bvp(planar, n_intervals, degree, period)
+    a_op, b_op, model_step = operator(obs, prob, planar)
+    if not offsets:
+        b_op = np.zeros_like(b_op)
+    w0 = _feasible_start(prob, walker, gait.fixed_point)
+    problem = _Problem(prob, planar, params, free, obs, a_op, b_op, model_step, offsets, max_iter)
+    sd_known = obs.sd_known
+    sigma = obs.sd.copy() if sd_known else np.full(len(obs.value), _FIRST_PASS_SD)
+    x0 = np.concatenate([w0, np.zeros(len(free)), np.zeros(len(OFFSETS))])
+    passes = 1 if sd_known else 2
+    for _ in range(passes):
+        sol, stats = problem.solve(x0, sigma)
+        x0 = sol
+        if not sd_known:
+            res = problem.angle_residuals(sol)
+            for s_i in range(len(SIGNALS)):
+                sel = obs.signal == s_i
+                if np.any(sel):
+                    sigma[sel] = max(float(np.sqrt(np.mean(res[sel] ** 2))), 1e-9)
+    return problem.result(sol, stats, sigma, "file" if sd_known else "estimated from residuals")
+
+
+def _feasible_start(prob: BVP, walker: Walker, z0: np.ndarray) -> np.ndarray:
+    """BVP unknowns of the starting gait (a simulated period, polished by the BVP solver)."""
+    w = initial_guess(walker, z0, prob)
+    sol = prob.solver(x0=w, p=walker.params.input_vector(), lbg=prob.lbg, ubg=prob.ubg)
+    if not prob.solver.stats()["success"]:
+        raise FitError(f"the starting gait does not solve the BVP ({prob.solver.stats()['return_status']})")
+    return np.array(sol["x"]).ravel()
+
+
+class _Problem:
+    """The fit's NLP, built once per call of :func:`fit`."""
+
+    def __init__(self, prob: BVP, planar: bool, params: Params, free, obs: Observations, a_op, b_op,
+                 model_step, offsets: bool, max_iter: int):
+        self.prob, self.planar, self.params, self.free, self.obs = prob, planar, params, free, obs
+        self.a_op, self.b_op, self.model_step = a_op, b_op, model_step
+        self.offsets = offsets
+        n_w = prob.phases * prob.phase_size
+        n_f, n_o = len(free), len(OFFSETS)
+        self.n_w = n_w
+        self.theta0 = np.array([params.get(n) for n in free])
+        self.scale = np.array([_scale(params, n) for n in free])
+        self.p0 = params.input_vector()
+        self.index = [INPUT_NAMES.index(n) for n in free]
+        x = ca.MX.sym("x", n_w + n_f + n_o)
+        w, delta, off = x[:n_w], x[n_w:n_w + n_f], x[n_w + n_f:]
+        p = ca.MX(ca.DM(self.p0))
+        for j, k in enumerate(self.index):
+            p[k] = self.p0[k] + self.scale[j] * delta[j]
+        inv_sd = ca.MX.sym("inv_sd", len(obs.value))
+        a_dm = ca.DM(a_op.tocoo().tocsc()) if a_op.nnz else ca.DM(a_op.shape[0], a_op.shape[1])
+        model = ca.mtimes(a_dm, w) + ca.mtimes(ca.DM(b_op), off)
+        r_ang = (model - ca.DM(obs.value)) * inv_sd
+        durations = ca.vertcat(*[w[prob.duration_index(int(j))] for j in model_step])
+        r_dur = (durations - ca.DM(obs.durations)) / ca.DM(obs.duration_sd)
+        f = 0.5 * (ca.sumsqr(r_ang) + ca.sumsqr(r_dur))
+        g = prob.constraints(w, p)
+        self.residuals_fn = ca.Function("residuals", [x, inv_sd], [ca.vertcat(r_ang, r_dur)])
+        self.solver = ca.nlpsol("fit", "ipopt", {"x": x, "p": inv_sd, "f": f, "g": g}, {
+            "ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
+            "ipopt.tol": 1e-10, "ipopt.max_iter": max_iter,
+        })
+        low, high = np.full(len(x.nz), -np.inf), np.full(len(x.nz), np.inf)
+        for j, name in enumerate(free):
+            lo, hi = _bounds(params, name)
+            low[n_w + j] = (lo - self.theta0[j]) / self.scale[j]
+            high[n_w + j] = (hi - self.theta0[j]) / self.scale[j]
+        if not offsets:
+            low[n_w + n_f:] = high[n_w + n_f:] = 0.0
+        self.lbx, self.ubx = low, high
+
+    def theta(self, x: np.ndarray) -> np.ndarray:
+        return self.theta0 + self.scale * x[self.n_w:self.n_w + len(self.free)]
+
+    def p_full(self, theta: np.ndarray) -> np.ndarray:
+        p = self.p0.copy()
+        p[self.index] = theta
+        return p
+
+    def solve(self, x0: np.ndarray, sigma: np.ndarray):
+        sol = self.solver(x0=x0, p=1.0 / sigma, lbx=self.lbx, ubx=self.ubx, lbg=self.prob.lbg,
+                          ubg=self.prob.ubg)
+        return np.array(sol["x"]).ravel(), self.solver.stats()
+
+    def angle_residuals(self, x: np.ndarray) -> np.ndarray:
+        """Model minus measurement of every angle observation (rad)."""
+        w, off = x[:self.n_w], x[self.n_w + len(self.free):]
+        return self.a_op @ w + self.b_op @ off - self.obs.value
+
+    def whitened(self, x: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+        return np.array(self.residuals_fn(x, 1.0 / sigma)).ravel()
+
+    # ----------------------------------------------------------------------------- result
+    def jacobian(self, x: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+        """Total derivative of the whitened residuals in (theta, offsets) through the BVP."""
+        prob, obs = self.prob, self.obs
+        w = x[:self.n_w]
+        g_w, g_p = (_sparse(m) for m in _equality_jacobians(prob)(w, self.p_full(self.theta(x))))
+        g_theta = g_p[:, self.index].toarray()
+        dw = -splu(g_w.tocsc()).solve(g_theta) if self.free else np.zeros((self.n_w, 0))
+        rows_ang = (self.a_op @ dw) / sigma[:, None]
+        rows_dur = np.array([dw[prob.duration_index(int(j))] for j in self.model_step])
+        rows_dur = rows_dur.reshape(len(self.model_step), len(self.free)) / obs.duration_sd[:, None]
+        j_theta = np.vstack([rows_ang, rows_dur])
+        j_off = np.vstack([self.b_op / sigma[:, None], np.zeros((len(self.model_step), len(OFFSETS)))])
+        if not self.offsets:
+            j_off = j_off[:, :0]
+        return np.hstack([j_theta, j_off])
+
+    def fd_check(self, x: np.ndarray, sigma: np.ndarray, jac: np.ndarray) -> dict:
+        """Central differences of the residuals in each free parameter, re-solving the BVP."""
+        out = {}
+        theta = self.theta(x)
+        for j, name in enumerate(self.free):
+            h = 1e-5 * self.scale[j]
+            cols = []
+            for sign in (1.0, -1.0):
+                th = theta.copy()
+                th[j] += sign * h
+                sol = self.prob.solver(x0=x[:self.n_w], p=self.p_full(th), lbg=self.prob.lbg,
+                                       ubg=self.prob.ubg)
+                if not self.prob.solver.stats()["success"]:
+                    break
+                xs = x.copy()
+                xs[:self.n_w] = np.array(sol["x"]).ravel()
+                xs[self.n_w + j] += sign * h / self.scale[j]
+                cols.append(self.whitened(xs, sigma))
+            if len(cols) < 2:
+                out[name] = None
+                continue
+            fd = (cols[0] - cols[1]) / (2 * h)
+            out[name] = float(np.linalg.norm(jac[:, j] - fd) / max(np.linalg.norm(fd), 1e-300))
+        return out
+
+    def result(self, x: np.ndarray, stats: dict, sigma: np.ndarray, noise_source: str) -> FitResult:
+        obs, prob = self.obs, self.prob
+        theta = self.theta(x)
+        names = list(self.free) + (list(OFFSETS) if self.offsets else [])
+        estimates = dict(zip(self.free, map(float, theta), strict=True))
+        off = x[self.n_w + len(self.free):]
+        if self.offsets:
+            estimates.update(zip(OFFSETS, map(float, off), strict=True))
+        notes: list[str] = []
+        jac = self.jacobian(x, sigma)
+        info = jac.T @ jac
+        norms = np.sqrt(np.maximum(np.diag(info), 1e-300))
+        scaled = info / np.outer(norms, norms)
+        evals, evecs = np.linalg.eigh(scaled)
+        if len(evals) and evals[0] < _NEAR_SINGULAR * evals[-1]:
+            vec = evecs[:, 0]
+            combo = " ".join(f"{v:+.2f} {n}" for v, n in zip(vec, names, strict=True) if abs(v) > 0.1)
+            notes.append(f"not determined by these data: the combination {combo} (scaled) has "
+                         f"{math.sqrt(max(evals[0], 0) / evals[-1]):.1e} of the largest singular value")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            cov = np.linalg.pinv(info)
+        std_all = np.sqrt(np.maximum(np.diag(cov), 0.0))
+        corr = cov / np.outer(np.maximum(std_all, 1e-300), np.maximum(std_all, 1e-300))
+        std = dict(zip(names, map(float, std_all), strict=True))
+        for j, name in enumerate(self.free):
+            lo, hi = _bounds(self.params, name)
+            if min(theta[j] - lo, hi - theta[j]) <= 1e-6 * self.scale[j]:
+                notes.append(f"{name} = {theta[j]:.6g} sits on its bound [{lo:g}, {hi:g}]: its "
+                             "standard error assumes it could move past it")
+        check = self.fd_check(x, sigma, jac) if self.free else {}
+        bad = {k: v for k, v in check.items() if v is None or v > 1e-3}
+        if bad:
+            notes.append(f"the AD and finite-difference Jacobians disagree for {sorted(bad)}: "
+                         f"{bad} (relative); the covariance may be unreliable")
+        res = self.angle_residuals(x)
+        rms, by_phase = {}, {}
+        bins = np.minimum((obs.phase * _PHASE_BINS).astype(int), _PHASE_BINS - 1)
+        for s_i, name in enumerate(SIGNALS):
+            sel = obs.signal == s_i
+            if not np.any(sel):
+                continue
+            rms[name] = float(np.sqrt(np.mean(res[sel] ** 2)))
+            by_phase[name] = [float(np.sqrt(np.mean(res[sel & (bins == b)] ** 2)))
+                              if np.any(sel & (bins == b)) else None for b in range(_PHASE_BINS)]
+        durations = np.array([x[prob.duration_index(int(j))] for j in self.model_step])
+        rms["step_duration"] = float(np.sqrt(np.mean((durations - obs.durations) ** 2)))
+        noise = {name: float(np.median(sigma[obs.signal == s_i]))
+                 for s_i, name in enumerate(SIGNALS) if np.any(obs.signal == s_i)}
+        whitened = self.whitened(x, sigma)
+        success = bool(stats["success"])
+        try:
+            fitted = self.params.replace(**estimates_only(estimates, self.free))
+            gait = self._gait(x, fitted)
+        except ParameterError as err:
+            fitted, gait, success = self.params, {}, False
+            notes.append(f"the estimates are not a valid walker: {err}")
+        return FitResult(
+            free=list(self.free), estimates=estimates, std=std, covariance=cov, correlation=corr,
+            names=names, noise_sd=noise, noise_source=noise_source, residual_rms=rms,
+            residual_rms_by_phase=by_phase, chi2=float(whitened @ whitened),
+            n_residuals=len(whitened), success=success, status=str(stats["return_status"]),
+            iterations=int(stats["iter_count"]), params=fitted, gait=gait, warnings=notes,
+            jacobian_check=check, solution=x)
+
+    def _gait(self, x: np.ndarray, fitted: Params) -> dict:
+        prob = self.prob
+        walker = Walker(fitted, planar=self.planar, period=prob.phases)
+        w = x[:self.n_w]
+        jac = cycle_jacobian(w, fitted.input_vector(), prob, walker)
+        vals = np.linalg.eigvals(jac)
+        vals = vals[np.argsort(-np.abs(vals))]
+        z0 = walker.to_public(np.r_[w[1:1 + prob.n_dyn], np.zeros(walker.lay.nx - prob.n_dyn)])
+        times = [float(w[prob.duration_index(j)]) for j in range(prob.phases)]
+        return {
+            "map": "step" if prob.phases == 1 else "stride",
+            "fixed_point": dict(zip(STATE_NAMES, map(float, z0), strict=True)),
+            "step_times": times,
+            "eigenvalues": [{"re": float(v.real), "im": float(v.imag)} for v in vals],
+            "max_abs_eigenvalue": float(np.max(np.abs(vals))),
+            "stable": bool(np.max(np.abs(vals)) < 1.0),
+            "planar": self.planar,
+        }
+
+
+def estimates_only(estimates: dict, free) -> dict:
+    """The free parameters' estimates (without the nuisance offsets)."""
+    return {name: estimates[name] for name in free}

@@ -1,0 +1,204 @@
+"""The measurement model: what a periodic model gait predicts for each measured sample.
+
+A measured walk (a trajectory file, pipeline.md) is cut into steps at its heel strikes. Within a
+step, a sample's **phase** is ``(t - t_strike) / (t_next_strike - t_strike)`` in [0, 1): the model
+gait is aligned to the measurement on the measured heel strikes, step by step, so that a step time
+that differs from the model's shows in the step-time residuals and not as a growing phase drift in
+the angles. The step's stance leg is the foot that landed at its first strike.
+
+The model describes a step in the mirrored description of model.md section 4 (the stance leg as
+the left one). A step with the physical right leg in stance is mirrored back: lean and steer
+change sign. The stance leg's pitch is ``theta_st`` and the swing leg's ``theta_sw``. A
+step-periodic gait (one model step) serves every measured step; a stride-periodic one (effects that
+break the mirror symmetry) has two model steps, the first with the left leg in stance.
+
+Model values at a phase come from the collocation polynomials of the gait BVP
+(:class:`toywalk.model.collocation.BVP`): each is a fixed linear combination of the BVP's
+unknowns (Lagrange weights in the mesh interval holding that phase), so the whole operator is one
+sparse matrix, built once per walk.
+
+Nuisance parameters: an orientation error of the ramp frame (the camera's pose of the ramp) shows,
+to first order, as constant offsets of lean (roll), steer (yaw) and both pitches (pitch); they
+enter as three offsets.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import scipy.sparse as sp
+from toywalk.model.collocation import BVP
+from toywalk.model.trajectory import SIGNALS, TrajectoryTable
+
+__all__ = ["OFFSETS", "MeasurementError", "Observations", "observations", "operator"]
+
+#: Nuisance offsets (rad), one per group of signals: lean, steer, and both pitches.
+OFFSETS = ("lean_offset", "steer_offset", "pitch_offset")
+_OFFSET_OF = {"lean": 0, "steer": 1, "pitch_left": 2, "pitch_right": 2}
+
+
+class MeasurementError(ValueError):
+    """The measurements cannot be fitted as given; the message says why."""
+
+
+@dataclasses.dataclass
+class Observations:
+    """A measured walk arranged for fitting.
+
+    Attributes
+    ----------
+    step_start, step_end : ndarray, shape (n_steps,)
+        Heel-strike times that begin and end each complete measured step (s).
+    stance : ndarray of str, shape (n_steps,)
+        'L' or 'R', the physical leg in stance.
+    duration_sd : ndarray, shape (n_steps,)
+        Standard deviation of each measured step duration (s).
+    step : ndarray of int, shape (n_obs,)
+        The measured step each observation belongs to.
+    phase : ndarray, shape (n_obs,)
+        Phase within its step, in [0, 1).
+    signal : ndarray of int, shape (n_obs,)
+        Index into :data:`toywalk.model.trajectory.SIGNALS`.
+    value, sd : ndarray, shape (n_obs,)
+        Measured angle (rad) and its standard deviation (rad; NaN where the file gives none).
+    time : ndarray, shape (n_obs,)
+        Sample time (s).
+    """
+
+    step_start: np.ndarray
+    step_end: np.ndarray
+    stance: np.ndarray
+    duration_sd: np.ndarray
+    step: np.ndarray
+    phase: np.ndarray
+    signal: np.ndarray
+    value: np.ndarray
+    sd: np.ndarray
+    time: np.ndarray
+
+    @property
+    def durations(self) -> np.ndarray:
+        return self.step_end - self.step_start
+
+    @property
+    def n_steps(self) -> int:
+        return len(self.step_start)
+
+    @property
+    def sd_known(self) -> bool:
+        """True when every observation has a standard deviation from the file."""
+        return bool(np.all(np.isfinite(self.sd)))
+
+
+def observations(table: TrajectoryTable, signals=SIGNALS) -> Observations:
+    """Arrange a measured trajectory for fitting (complete steps between heel strikes only).
+
+    Raises
+    ------
+    MeasurementError
+        Fewer than two complete steps, heel strikes out of order, or no usable samples.
+    """
+    events = sorted(table.events, key=lambda e: e["time"])
+    times = np.array([e["time"] for e in events], dtype=float)
+    if len(events) < 3:
+        raise MeasurementError(
+            f"the walk has {len(events)} heel strike(s): fitting needs at least 3 (two complete steps)"
+        )
+    if not np.all(np.isfinite(times)) or np.any(np.diff(times) <= 0):
+        raise MeasurementError("heel-strike times must be finite and increasing")
+    feet = [e["foot"] for e in events]
+    if any(f not in ("L", "R") for f in feet):
+        raise MeasurementError("every heel strike needs its foot, 'L' or 'R'")
+    if any(a == b for a, b in zip(feet, feet[1:], strict=False)):
+        raise MeasurementError("heel strikes must alternate between the feet (a strike is missing)")
+    sd_t = np.array([e.get("time_sd", math.nan) for e in events], dtype=float)
+    dt = float(np.median(np.diff(table.time))) if len(table.time) > 1 else 0.0
+    if not np.all(np.isfinite(sd_t)):
+        # Strike times known only to the sampling: each uniform within one sample interval.
+        sd_t = np.full(len(events), dt / math.sqrt(12.0))
+    sd_t = np.maximum(sd_t, 1e-9 * max(dt, 1e-3))
+    start, end = times[:-1], times[1:]
+    stance = np.array(feet[:-1])
+    rows = {k: [] for k in ("step", "phase", "signal", "value", "sd", "time")}
+    index = np.searchsorted(times, table.time, side="right") - 1
+    for s_i, name in enumerate(SIGNALS):
+        if name not in signals:
+            continue
+        values = table.signals[name]
+        sds = table.signals.get(f"{name}_sd", np.full(len(values), np.nan))
+        if np.any(np.isinf(values)):
+            raise MeasurementError(f"column {name} holds infinite values (missing samples are empty)")
+        ok = (index >= 0) & (index < len(start)) & np.isfinite(values)
+        k = index[ok]
+        rows["step"].append(k)
+        rows["phase"].append((table.time[ok] - start[k]) / (end[k] - start[k]))
+        rows["signal"].append(np.full(len(k), s_i))
+        rows["value"].append(values[ok])
+        rows["sd"].append(sds[ok])
+        rows["time"].append(table.time[ok])
+    data = {k: np.concatenate(v) for k, v in rows.items()}
+    if len(data["value"]) == 0:
+        raise MeasurementError("no measured sample lies within a complete step")
+    bad_sd = np.isfinite(data["sd"]) & (data["sd"] <= 0)
+    if np.any(bad_sd):
+        raise MeasurementError("standard deviations (*_sd columns) must be positive")
+    return Observations(step_start=start, step_end=end, stance=stance,
+                        duration_sd=np.hypot(sd_t[:-1], sd_t[1:]), step=data["step"].astype(int),
+                        phase=np.clip(data["phase"], 0.0, 1.0), signal=data["signal"].astype(int),
+                        value=data["value"], sd=data["sd"], time=data["time"])
+
+
+def _lagrange(points: np.ndarray, s: float) -> np.ndarray:
+    """Lagrange basis polynomials through ``points`` evaluated at ``s``."""
+    out = np.ones(len(points))
+    for r, pr in enumerate(points):
+        for q, pq in enumerate(points):
+            if q != r:
+                out[r] *= (s - pq) / (pr - pq)
+    return out
+
+
+def operator(obs: Observations, prob: BVP, planar: bool) -> tuple[sp.csr_matrix, np.ndarray,
+                                                                   np.ndarray]:
+    """The linear map from the BVP's unknowns to the model's values of the observations.
+
+    Returns ``(A, B, phase_of_step)``: ``A`` (n_obs, n_w) sparse, so that ``A @ w`` is the model's
+    angle at each observation; ``B`` (n_obs, 3) the offsets' design (:data:`OFFSETS`); and the
+    model step (phase of the period) each measured step is compared with.
+    """
+    deg = prob.degree
+    points = np.r_[0.0, prob.tau]
+    # Model step per measured step: the left leg's step first in a stride.
+    if prob.phases == 1:
+        model_step = np.zeros(obs.n_steps, dtype=int)
+    else:
+        model_step = np.where(obs.stance == "L", 0, 1)
+    side = np.where(obs.stance == "L", 1.0, -1.0)
+    # Internal components: (phi, psi, theta_st, theta_sw) in 3D; (theta_st, theta_sw) planar.
+    comp = {"steer": 0, "lean": 1, "st": 2, "sw": 3} if not planar else {"st": 0, "sw": 1}
+    rows, cols, vals = [], [], []
+    n_obs = len(obs.value)
+    b = np.zeros((n_obs, len(OFFSETS)))
+    for i in range(n_obs):
+        k = obs.step[i]
+        name = SIGNALS[obs.signal[i]]
+        b[i, _OFFSET_OF[name]] = 1.0
+        if name in ("lean", "steer"):
+            if planar:
+                continue
+            c, sign = comp[name], side[k]
+        else:
+            own = "L" if name == "pitch_left" else "R"
+            c, sign = comp["st" if obs.stance[k] == own else "sw"], 1.0
+        scaled = obs.phase[i] * prob.n_int
+        m = min(int(scaled), prob.n_int - 1)
+        weights = _lagrange(points, scaled - m)
+        for r in range(deg + 1):
+            rows.append(i)
+            cols.append(prob.state_index(model_step[k], m, r) + c)
+            vals.append(sign * weights[r])
+    n_w = prob.phases * prob.phase_size
+    a = sp.csr_matrix((vals, (rows, cols)), shape=(n_obs, n_w))
+    return a, b, model_step
