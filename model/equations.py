@@ -277,8 +277,9 @@ def _collision_exprs(sym: Symbolic) -> dict[str, ca.SX]:
 
     Returns a dict: ``u_plus``; ``residual`` (the jump conditions as a function of ``up``, the
     symbol of trial post-collision speeds, with the effects' trailing impulse); ``up``;
-    ``energy_change`` (J, kinetic energy after minus before); ``normal_impulses`` (N s, shape (2,):
-    at the landing foot D and at the trailing foot C, along the ramp normal).
+    ``kinetic_before`` and ``energy_change`` (J, kinetic energy before, and after minus before);
+    ``normal_impulses`` (N s, shape (2,): at the landing foot D and at the trailing foot C, along
+    the ramp normal).
     """
     lay, q, e, ctx = sym.lay, sym.q, sym.exprs, sym.ctx
     par = ctx.params
@@ -367,7 +368,7 @@ def _collision_exprs(sym: Symbolic) -> dict[str, ca.SX]:
         lead = (1 - k) * lead + k * ca.substitute(normal_total, up, arrested)
         trail = (1 - k) * trail
     final = velocities(u_plus)
-    return dict(u_plus=u_plus, residual=residual, up=up,
+    return dict(u_plus=u_plus, residual=residual, up=up, kinetic_before=kinetic(before),
                 energy_change=kinetic(final) - kinetic(before),
                 normal_impulses=ca.vertcat(lead, trail))
 
@@ -394,8 +395,8 @@ def build_functions(planar: bool, effects: bool = True) -> dict[str, ca.Function
       distance ahead of the stance contact along the heading (m).
     - ``collision(x, p) -> x_plus`` : impact, relabel and mirror; the contact travel is set to the
       new contact point (in the old frame; the caller handles frames).
-    - ``impact(x, p) -> (dK, lambda)`` : the collision's kinetic-energy change (J) and the normal
-      impulses at the landing and trailing feet (N s).
+    - ``impact(x, p) -> (dK, lambda, K)`` : the collision's kinetic-energy change (J), the normal
+      impulses at the landing and trailing feet (N s) and the kinetic energy before it (J).
     - ``momenta(x, u_plus, p) -> residual`` : the conservation residuals of the collision law.
     - ``points(x, p) -> P`` : shape (3, 9), the walker's points relative to C (drawing, checks).
     """
@@ -427,8 +428,9 @@ def build_functions(planar: bool, effects: bool = True) -> dict[str, ca.Function
         "dissipation": ca.Function("dissipation", [x, p], [e["dissipation"]], ["x", "p"], ["D"], opts),
         "guard": ca.Function("guard", [x, p], [guard], ["x", "p"], ["guard"], opts),
         "collision": ca.Function("collision", [x, p], [x_plus], ["x", "p"], ["x_plus"], opts),
-        "impact": ca.Function("impact", [x, p], [coll["energy_change"], coll["normal_impulses"]],
-                              ["x", "p"], ["dK", "lambda"], opts),
+        "impact": ca.Function("impact", [x, p], [coll["energy_change"], coll["normal_impulses"],
+                                                 coll["kinetic_before"]],
+                              ["x", "p"], ["dK", "lambda", "K"], opts),
         "momenta": ca.Function(
             "momenta", [x, coll["up"], p], [coll["residual"]], ["x", "u_plus", "p"], ["residual"], opts
         ),

@@ -408,9 +408,9 @@ class Walker:
         x_t = xt.ravel().copy()
         step_time = hit * dt + tau
         x_plus = k["collision"](x_t, p)[0].ravel().copy()
-        d_kinetic, impulses = (a.ravel().copy() for a in k["impact"](x_t, p))
+        d_kinetic, impulses, kinetic = (a.ravel().copy() for a in k["impact"](x_t, p))
         if self._check_impact:
-            self._admissible(x_t, float(d_kinetic[0]), impulses, side)
+            _admissible(float(d_kinetic[0]), impulses, float(kinetic[0]))
         travel = slice(lay.n_dyn, lay.nx)
         contact = np.zeros(2)
         contact[: lay.nx - lay.n_dyn] = x_plus[travel] - x0[travel]
@@ -444,20 +444,6 @@ class Walker:
         for i in range(1, len(times)):
             out[i] = out[i - 1] + kernel(states[i - 1], times[i] - times[i - 1], p)[0].ravel()
         return out
-
-    def _admissible(self, x_t: np.ndarray, d_kinetic: float, impulses: np.ndarray, side: int) -> None:
-        kinetic = self.eng.k["energy"](np.r_[x_t[:self.lay.n_dyn], np.zeros(self.lay.nx - self.lay.n_dyn)],
-                                       self._inputs[side])[0][0, 0]
-        kinetic -= self.eng.k["energy"](np.r_[x_t[:self.lay.nq], np.zeros(self.lay.nx - self.lay.nq)],
-                                        self._inputs[side])[0][0, 0]
-        total = float(np.sum(np.abs(impulses)))
-        if d_kinetic > _IMPACT_RTOL * max(kinetic, 0.0) or np.min(impulses) < -_IMPACT_RTOL * total:
-            raise StepFailure(
-                "inadmissible_impact",
-                f"the heel strike would gain {d_kinetic:.3g} J or pull on a foot (normal impulses "
-                f"{impulses[0]:.3g}, {impulses[1]:.3g} N s): the collision-law effects are beyond "
-                "what this impact admits",
-            )
 
     def stride(self, z0: np.ndarray, jacobian: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
         """The stride map P_R o P_L (the seed's map f, collision to the next collision of the same
@@ -499,6 +485,19 @@ class Walker:
             # The last input column is the side in stance, not a parameter.
             out.jacobian_params = self._rows_to_public((c_x @ dxt_dp + c_p)[:nd, :N_PARAMS])
             out.time_gradient_params = dtau_dp[:N_PARAMS]
+
+
+def _admissible(d_kinetic: float, impulses: np.ndarray, kinetic: float) -> None:
+    """Raise :class:`StepFailure` for a collision that gains kinetic energy (J, ``kinetic`` before
+    it) or has a negative normal impulse (N s) beyond round-off."""
+    total = float(np.sum(np.abs(impulses)))
+    if d_kinetic > _IMPACT_RTOL * max(kinetic, 0.0) or np.min(impulses) < -_IMPACT_RTOL * total:
+        raise StepFailure(
+            "inadmissible_impact",
+            f"the heel strike would gain {d_kinetic:.3g} J or pull on a foot (normal impulses "
+            f"{impulses[0]:.3g}, {impulses[1]:.3g} N s): the collision-law effects are beyond "
+            "what this impact admits",
+        )
 
 
 def is_planar_symmetric(params: Params) -> bool:

@@ -13,7 +13,7 @@ from toywalk.model.gait import find_gait, solve_fixed_point
 from toywalk.model.kinematics import rotation
 from toywalk.model.parameters import PARAMETER_NAMES, ParameterError, Params, load_params
 from toywalk.model.simulate import simulate
-from toywalk.model.walker import StepFailure, Walker
+from toywalk.model.walker import StepFailure, Walker, _admissible
 
 from ..conftest import DATA
 from .test_equations import FEET, GENERAL, _free_system, _u_plus_old_labels
@@ -257,7 +257,8 @@ def _reference_collision(params, x, share, arrest):
     u_plus = u0 + arrest * (u1 - u0)
     d_kinetic = 0.5 * (u_plus @ m_free @ u_plus - u_minus @ m_free @ u_minus)
     lead = (1 - arrest) * p0[2] + arrest * p1[2]
-    return u_plus[3:], d_kinetic, np.array([lead, (1 - arrest) * ratio * p0[2]])
+    before = 0.5 * u_minus @ m_free @ u_minus
+    return u_plus[3:], d_kinetic, np.array([lead, (1 - arrest) * ratio * p0[2]]), before
 
 
 def _omega_columns(q):
@@ -297,12 +298,13 @@ def test_collision_effects_match_free_walker_impulses(feet):
         walker = Walker(params.replace(**{"effects.impact_trailing_share": share,
                                           "effects.impact_spin_arrest": arrest}))
         for x in _random_states(rng, 4):
-            expected, d_k, impulses = _reference_collision(params, x, share, arrest)
+            expected, d_k, impulses, before = _reference_collision(params, x, share, arrest)
             got = _u_plus_old_labels(walker, walker.eng.k["collision"](x, walker.p)[0].ravel())
             rate = np.max(np.abs(x[4:8]))
             # A 4x4 (or 5x5) solve against a 10x10 (11x11) one: round-off level.
             assert_allclose(got, expected, atol=1e-9 * rate, err_msg=f"{share}, {arrest}")
-            d_k_got, imp_got = (np.ravel(a) for a in walker.eng.k["impact"](x, walker.p))
+            d_k_got, imp_got, before_got = (np.ravel(a) for a in walker.eng.k["impact"](x, walker.p))
+            assert_allclose(before_got[0], before, rtol=1e-12)
             assert_allclose(d_k_got[0], d_k, atol=1e-10 * abs(d_k) + 1e-15)
             assert_allclose(imp_got, impulses, atol=1e-9 * np.abs(impulses).max())
 
@@ -321,9 +323,8 @@ def test_collision_effects_never_gain_energy(name):
                                                 "effects.impact_spin_arrest": k}))
                for s in (0.0, 0.5 * high, high) for k in (0.0, 0.5, 1.0)}
     for x in _heel_strike_states(params, gait, rng, 30):
-        ke = walker_ke(walkers[0.0, 0.0], x)
         for (s, k), w in walkers.items():
-            d_k, impulses = (np.ravel(a) for a in w.eng.k["impact"](x, w.p))
+            d_k, impulses, ke = (np.ravel(a) for a in w.eng.k["impact"](x, w.p))
             assert d_k[0] <= 1e-12 * ke, (s, k)
             if k == 0.0:
                 assert np.min(impulses) >= -1e-12 * np.abs(impulses).sum(), s
@@ -354,20 +355,10 @@ def test_spin_arrest_grips_near_gaits_and_refuses_to_pull(name):
                    if np.ravel(arrested.eng.k["impact"](x, arrested.p)[1])[0] < 0) \
         if name in ("stable-toy", "tinkertoy") else None
     if pulling is not None:
+        d_k, impulses, ke = (np.ravel(a).copy() for a in arrested.eng.k["impact"](pulling, arrested.p))
         with pytest.raises(StepFailure) as info:
-            arrested._admissible(pulling, *_impact(arrested, pulling), 1)
+            _admissible(float(d_k[0]), impulses, float(ke[0]))
         assert info.value.status == "inadmissible_impact"
-
-
-def _impact(walker, x):
-    d_k, impulses = walker.eng.k["impact"](x, walker.p)
-    return float(d_k[0, 0]), np.ravel(impulses).copy()
-
-
-def walker_ke(walker, x):
-    lay = walker.lay
-    return (walker.energy(np.r_[x[:lay.n_dyn], np.zeros(lay.nx - lay.n_dyn)])
-            - walker.energy(np.r_[x[:lay.nq], np.zeros(lay.nx - lay.nq)]))
 
 
 def test_inadmissible_impact_is_a_step_failure():
