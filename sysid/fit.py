@@ -216,7 +216,8 @@ def _sparse(m: ca.DM) -> sp.csc_matrix:
 
 # ------------------------------------------------------------------------------------ fit
 def fit(table: TrajectoryTable, params: Params, free, *, offsets: bool = True,
-        n_intervals: int = 30, degree: int = 4, z_guess=None, max_iter: int = 500) -> FitResult:
+        n_intervals: int = 30, degree: int = 4, z_guess=None, max_iter: int = 500,
+        check_jacobian: bool = True) -> FitResult:
     """Fit ``free`` parameters of ``params`` to the measured walk ``table``.
 
     Parameters
@@ -236,6 +237,9 @@ def fit(table: TrajectoryTable, params: Params, free, *, offsets: bool = True,
         A start near the gait (default: :func:`toywalk.model.gait.find_gait`).
     max_iter : int
         IPOPT's iteration cap.
+    check_jacobian : bool
+        Cross-check the reduced Jacobian against central differences (two BVP solves per free
+        parameter); the result's ``jacobian_check`` is empty without it.
 
     Raises
     ------
@@ -257,7 +261,8 @@ def fit(table: TrajectoryTable, params: Params, free, *, offsets: bool = True,
     if not offsets:
         b_op = np.zeros_like(b_op)
     w0 = _feasible_start(prob, walker, gait.fixed_point)
-    problem = _Problem(prob, planar, params, free, obs, a_op, b_op, model_step, offsets, max_iter)
+    problem = _Problem(prob, planar, params, free, obs, a_op, b_op, model_step, offsets, max_iter,
+                       check_jacobian)
     sd_known = obs.sd_known
     sigma = obs.sd.copy() if sd_known else np.full(len(obs.value), _FIRST_PASS_SD)
     x0 = np.concatenate([w0, np.zeros(len(free)), np.zeros(len(OFFSETS))])
@@ -287,8 +292,9 @@ class _Problem:
     """The fit's NLP, built once per call of :func:`fit`."""
 
     def __init__(self, prob: BVP, planar: bool, params: Params, free, obs: Observations, a_op, b_op,
-                 model_step, offsets: bool, max_iter: int):
+                 model_step, offsets: bool, max_iter: int, check_jacobian: bool):
         self.prob, self.planar, self.params, self.free, self.obs = prob, planar, params, free, obs
+        self.check_jacobian = check_jacobian
         self.a_op, self.b_op, self.model_step = a_op, b_op, model_step
         self.offsets = offsets
         n_w = prob.phases * prob.phase_size
@@ -418,7 +424,7 @@ class _Problem:
             if min(theta[j] - lo, hi - theta[j]) <= 1e-6 * self.scale[j]:
                 notes.append(f"{name} = {theta[j]:.6g} sits on its bound [{lo:g}, {hi:g}]: its "
                              "standard error assumes it could move past it")
-        check = self.fd_check(x, sigma, jac) if self.free else {}
+        check = self.fd_check(x, sigma, jac) if self.free and self.check_jacobian else {}
         bad = {k: v for k, v in check.items() if v is None or v > 1e-3}
         if bad:
             notes.append(f"the AD and finite-difference Jacobians disagree for {sorted(bad)}: "
