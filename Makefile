@@ -21,6 +21,7 @@ test: $(STAMP)
 bench: $(STAMP)
 	$(PY) benchmarks/run_all.py
 	$(PY) benchmarks/track_accuracy.py
+	$(PY) benchmarks/sample_speed.py
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check model tracking sysid tests benchmarks

@@ -370,6 +370,7 @@ _COMMAND_MODULES = (
     "toywalk.sysid.cmd_render",
     "toywalk.sysid.cmd_track",
     "toywalk.sysid.cmd_fit",
+    "toywalk.sysid.cmd_sample",
 )
 
 

@@ -32,7 +32,8 @@ import scipy.sparse as sp
 from toywalk.model.collocation import BVP
 from toywalk.model.trajectory import SIGNALS, TrajectoryTable
 
-__all__ = ["OFFSETS", "MeasurementError", "Observations", "observations", "operator"]
+__all__ = ["OFFSETS", "MeasurementError", "Observations", "components", "observations", "offsets_design",
+           "operator"]
 
 #: Nuisance offsets (rad), one per group of signals: lean, steer, and both pitches.
 OFFSETS = ("lean_offset", "steer_offset", "pitch_offset")
@@ -160,6 +161,41 @@ def _lagrange(points: np.ndarray, s: float) -> np.ndarray:
     return out
 
 
+def components(obs: Observations, phases: int, planar: bool) -> tuple[np.ndarray, np.ndarray,
+                                                                       np.ndarray]:
+    """Which model quantity each observation measures.
+
+    Returns ``(model_step, component, sign)``, each shape (n_obs,): the model step (phase of the
+    period) of the observation's measured step, the internal state component it reads ((phi, psi,
+    theta_st, theta_sw) in 3D, (theta_st, theta_sw) planar; -1 where the model predicts zero, as
+    for lean and steer in the planar reduction) and its sign (-1 for the lean and steer of a step
+    with the right leg in stance, mirrored back).
+    """
+    step_of = np.zeros(obs.n_steps, dtype=int) if phases == 1 else np.where(obs.stance == "L", 0, 1)
+    side = np.where(obs.stance == "L", 1.0, -1.0)
+    comp = {"steer": 0, "lean": 1, "st": 2, "sw": 3} if not planar else {"st": 0, "sw": 1}
+    n_obs = len(obs.value)
+    component, sign = np.full(n_obs, -1), np.ones(n_obs)
+    for i in range(n_obs):
+        k = obs.step[i]
+        name = SIGNALS[obs.signal[i]]
+        if name in ("lean", "steer"):
+            if not planar:
+                component[i], sign[i] = comp[name], side[k]
+        else:
+            own = "L" if name == "pitch_left" else "R"
+            component[i] = comp["st" if obs.stance[k] == own else "sw"]
+    return step_of[obs.step], component, sign
+
+
+def offsets_design(obs: Observations) -> np.ndarray:
+    """The nuisance offsets' design, shape (n_obs, 3): one column per :data:`OFFSETS` group."""
+    b = np.zeros((len(obs.value), len(OFFSETS)))
+    for s_i, name in enumerate(SIGNALS):
+        b[obs.signal == s_i, _OFFSET_OF[name]] = 1.0
+    return b
+
+
 def operator(obs: Observations, prob: BVP, planar: bool) -> tuple[sp.csr_matrix, np.ndarray,
                                                                    np.ndarray]:
     """The linear map from the BVP's unknowns to the model's values of the observations.
@@ -168,37 +204,17 @@ def operator(obs: Observations, prob: BVP, planar: bool) -> tuple[sp.csr_matrix,
     angle at each observation; ``B`` (n_obs, 3) the offsets' design (:data:`OFFSETS`); and the
     model step (phase of the period) each measured step is compared with.
     """
-    deg = prob.degree
     points = np.r_[0.0, prob.tau]
-    # Model step per measured step: the left leg's step first in a stride.
-    if prob.phases == 1:
-        model_step = np.zeros(obs.n_steps, dtype=int)
-    else:
-        model_step = np.where(obs.stance == "L", 0, 1)
-    side = np.where(obs.stance == "L", 1.0, -1.0)
-    # Internal components: (phi, psi, theta_st, theta_sw) in 3D; (theta_st, theta_sw) planar.
-    comp = {"steer": 0, "lean": 1, "st": 2, "sw": 3} if not planar else {"st": 0, "sw": 1}
+    model_step, component, sign = components(obs, prob.phases, planar)
     rows, cols, vals = [], [], []
-    n_obs = len(obs.value)
-    b = np.zeros((n_obs, len(OFFSETS)))
-    for i in range(n_obs):
-        k = obs.step[i]
-        name = SIGNALS[obs.signal[i]]
-        b[i, _OFFSET_OF[name]] = 1.0
-        if name in ("lean", "steer"):
-            if planar:
-                continue
-            c, sign = comp[name], side[k]
-        else:
-            own = "L" if name == "pitch_left" else "R"
-            c, sign = comp["st" if obs.stance[k] == own else "sw"], 1.0
+    for i in np.flatnonzero(component >= 0):
         scaled = obs.phase[i] * prob.n_int
         m = min(int(scaled), prob.n_int - 1)
         weights = _lagrange(points, scaled - m)
-        for r in range(deg + 1):
+        for r in range(prob.degree + 1):
             rows.append(i)
-            cols.append(prob.state_index(model_step[k], m, r) + c)
-            vals.append(sign * weights[r])
-    n_w = prob.phases * prob.phase_size
-    a = sp.csr_matrix((vals, (rows, cols)), shape=(n_obs, n_w))
-    return a, b, model_step
+            cols.append(prob.state_index(model_step[i], m, r) + component[i])
+            vals.append(sign[i] * weights[r])
+    a = sp.csr_matrix((vals, (rows, cols)), shape=(len(obs.value), prob.phases * prob.phase_size))
+    per_step = np.zeros(obs.n_steps, dtype=int) if prob.phases == 1 else np.where(obs.stance == "L", 0, 1)
+    return a, offsets_design(obs), per_step

@@ -1,0 +1,84 @@
+"""``toywalk sample F.json M.csv --out CHAIN.h5``: the posterior of a fit's free parameters (emcee)."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+__all__ = ["cmd_sample", "register"]
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser("sample", help="sample the posterior of a fit's free parameters (emcee)")
+    p.add_argument("fit", metavar="F.json", help="fit file from `toywalk fit`")
+    p.add_argument("trajectory", metavar="M.csv", help="the measured walk the fit used")
+    p.add_argument("--out", required=True, help="chain file CHAIN.h5 (resumed when it exists)")
+    p.add_argument("--walkers", type=int, default=32, help="walkers per ensemble")
+    p.add_argument("--steps", type=int, default=1000, help="steps per walker")
+    p.add_argument("--ensembles", type=int, default=3,
+                   help="independent ensembles (R-hat compares them)")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, default=1, help="local processes")
+    where.add_argument("--scheduler", help="address of a Dask distributed scheduler")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--report", metavar="DIR", help="write diagnostics and figures into DIR")
+    p.set_defaults(func=cmd_sample)
+
+
+def cmd_sample(args) -> int:
+    import sys
+
+    from toywalk.model.files import atomic_write_json
+    from toywalk.model.trajectory import read_trajectory
+    from toywalk.sysid.cli import CommandError
+    from toywalk.sysid.fit import FitError
+    from toywalk.sysid.measurement import MeasurementError
+    from toywalk.sysid.sample import SampleError, sample
+
+    out = Path(args.out)
+    if out.suffix not in (".h5", ".hdf5"):
+        raise CommandError(f"--out must name an .h5 file, got {out}")
+    if not out.parent.exists():
+        raise CommandError(f"output folder does not exist: {out.parent}")
+    if args.workers < 1:
+        raise CommandError(f"--workers must be >= 1, got {args.workers}")
+    try:
+        report = json.loads(Path(args.fit).read_text())
+    except FileNotFoundError as err:
+        raise CommandError(f"fit file not found: {args.fit}") from err
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+        raise CommandError(f"{args.fit} is not a fit file (JSON): {err}") from err
+    if not isinstance(report, dict):
+        raise CommandError(f"{args.fit} is not a fit file from `toywalk fit`")
+    try:
+        table = read_trajectory(args.trajectory)
+    except (OSError, ValueError) as err:
+        raise CommandError(str(err)) from err
+    try:
+        summary = sample(report, table, out, walkers=args.walkers, steps=args.steps,
+                         ensembles=args.ensembles, workers=args.workers, scheduler=args.scheduler,
+                         seed=args.seed, progress=sys.stderr.isatty())
+    except (SampleError, FitError, MeasurementError) as err:
+        raise CommandError(str(err)) from err
+    except OSError as err:
+        raise CommandError(f"cannot use {out} or the scheduler: {err}") from err
+    data = summary.to_json()
+    atomic_write_json(out.with_suffix(".json"), data)
+    if args.report:
+        from toywalk.sysid.diagnostics import write_report
+
+        write_report(out, data, Path(args.report))
+    for name in summary.names:
+        q5, q50, q95 = data["quantiles_5_50_95"][name]
+        rhat = data["rhat"][name] if data["rhat"] else math.nan
+        print(f"{name:<28s} median {q50:.6g}  90 % [{q5:.6g}, {q95:.6g}]  tau "
+              f"{data['autocorrelation_time'][name]:.1f}  R-hat {rhat:.3f}")
+    if data["probability_stable"] is not None:
+        print(f"P(stable gait) {data['probability_stable']:.3f}; no gait in "
+              f"{100 * data['fraction_no_gait']:.1f} % of proposals")
+    if not data["long_enough"]:
+        print(f"warning: the chains ({data['length']} steps) are not longer than "
+              f"{data['stop_rule'].split('>')[1].strip()}: run longer (the file resumes)")
+    print(f"{data['length']} steps x {summary.walkers} walkers x {summary.ensembles} ensembles -> {out}")
+    return 0

@@ -1,0 +1,108 @@
+"""Figures and a summary page of a sampling run (``toywalk sample --report DIR``).
+
+Trace plots (every walker of every ensemble), a corner plot of the kept draws (after burn-in,
+thinned by half an autocorrelation time; ``corner``), the posterior of the gait's max |eigenvalue|
+with the stability line, and ``report.md`` with the diagnostics table. Every file is written under
+a temporary name and renamed into place.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+from toywalk.model.files import atomic_write_json, atomic_write_text
+
+__all__ = ["write_report"]
+
+
+def _chains(path: Path, ensembles: int):
+    import emcee
+
+    out = []
+    for e in range(ensembles):
+        b = emcee.backends.HDFBackend(str(path), name=f"ensemble_{e}", read_only=True)
+        out.append((b.get_chain(), b.get_blobs()))
+    return out
+
+
+def _save(fig, path: Path) -> None:
+    import matplotlib.pyplot as plt
+
+    tmp = path.with_name(f".{path.name}.tmp.png")
+    try:
+        fig.savefig(tmp, dpi=110)
+        os.replace(tmp, path)
+    finally:
+        plt.close(fig)
+        tmp.unlink(missing_ok=True)
+
+
+def write_report(chain: Path, summary: dict, folder: Path) -> list[Path]:
+    """Write trace.png, corner.png, eigenvalues.png, report.md and report.json into ``folder``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import corner
+    import matplotlib.pyplot as plt
+
+    folder.mkdir(parents=True, exist_ok=True)
+    names = summary["names"]
+    runs = _chains(Path(chain), summary["ensembles"])
+    burn, thin = summary["burn_in"], summary["thin"]
+    written = []
+
+    fig, axes = plt.subplots(len(names), 1, figsize=(7, 1.8 * len(names) + 0.6), sharex=True,
+                             squeeze=False)
+    for i, name in enumerate(names):
+        ax = axes[i, 0]
+        for e, (c, _) in enumerate(runs):
+            ax.plot(c[:, :, i], color=f"C{e}", alpha=0.3, lw=0.6)
+        ax.axvline(burn, color="k", ls="--", lw=0.8)
+        ax.set_ylabel(name, fontsize=8)
+    axes[-1, 0].set_xlabel("step (dashed: end of burn-in); colours: independent ensembles")
+    fig.tight_layout()
+    _save(fig, folder / "trace.png")
+    written.append(folder / "trace.png")
+
+    draws = np.concatenate([c[burn::thin].reshape(-1, len(names)) for c, _ in runs])
+    fig = corner.corner(draws, labels=names, quantiles=[0.05, 0.5, 0.95], show_titles=True,
+                        title_fmt=".3g", title_kwargs={"fontsize": 8}, label_kwargs={"fontsize": 8})
+    _save(fig, folder / "corner.png")
+    written.append(folder / "corner.png")
+
+    eig = np.concatenate([b["max_abs_eigenvalue"][burn::thin].ravel() for _, b in runs])
+    eig = eig[np.isfinite(eig)]
+    fig, ax = plt.subplots(figsize=(6, 3.2))
+    if len(eig):
+        ax.hist(eig, bins=40, color="0.5")
+    ax.axvline(1.0, color="r", lw=1)
+    ax.set_xlabel("max |eigenvalue| of the gait's period map (< 1: stable)")
+    ax.set_ylabel("posterior draws")
+    fig.tight_layout()
+    _save(fig, folder / "eigenvalues.png")
+    written.append(folder / "eigenvalues.png")
+
+    lines = ["# Posterior of the fit's free parameters", "",
+             f"{summary['ensembles']} independent ensembles of {summary['walkers']} walkers, "
+             f"{summary['length']} steps each; burn-in {burn}, thinned by {thin}.",
+             f"Long enough ({summary['stop_rule']}): {summary['long_enough']}.",
+             f"Acceptance fractions: {', '.join(f'{a:.2f}' for a in summary['acceptance_fraction'])}.",
+             f"Proposals with no gait: {100 * summary['fraction_no_gait']:.2f} %; outside the prior: "
+             f"{100 * summary['fraction_outside_prior']:.2f} %.", "",
+             "| parameter | median | 5 % | 95 % | SD | tau | R-hat | ESS (bulk) |",
+             "| --- | --- | --- | --- | --- | --- | --- | --- |"]
+    for n in names:
+        q5, q50, q95 = summary["quantiles_5_50_95"][n]
+        rhat = summary["rhat"][n] if summary["rhat"] else float("nan")
+        ess = summary["ess_bulk"][n] if summary["ess_bulk"] else float("nan")
+        lines.append(f"| {n} | {q50:.6g} | {q5:.6g} | {q95:.6g} | {summary['std'][n]:.3g} | "
+                     f"{summary['autocorrelation_time'][n]:.1f} | {rhat:.3f} | {ess:.0f} |")
+    if summary.get("probability_stable") is not None:
+        lines += ["", f"Probability that the fitted gait is stable: {summary['probability_stable']:.3f}."]
+    lines += ["", "![trace](trace.png)", "", "![corner](corner.png)", "",
+              "![eigenvalues](eigenvalues.png)", ""]
+    atomic_write_text(folder / "report.md", "\n".join(lines))
+    atomic_write_json(folder / "report.json", summary)
+    return written + [folder / "report.md", folder / "report.json"]

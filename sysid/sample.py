@@ -1,0 +1,284 @@
+"""Posterior sampling of a fit's free parameters with emcee: resumable, parallel, diagnosed.
+
+Several **independent ensembles** (emcee's affine-invariant ensemble sampler, Foreman-Mackey et
+al. 2013, PASP 125:306) run one after another, each in its own group of one HDF5 file (emcee's
+``HDFBackend``, written after every step). Walkers of one ensemble are not independent chains, so
+R-hat compares ensembles, not walkers. Each ensemble starts in a small ball about the fit's
+estimates drawn from its covariance (inside the prior), and its random state comes from the seed
+and its index, so a run is reproducible. A run that is killed resumes where the file ends: every
+stored step is kept and the run continues to the requested length, from the stored state.
+
+The log-posterior (:class:`toywalk.sysid.likelihood.LogPosterior`) returns a blob per sample: the
+gait's max |eigenvalue| and a status (found, outside the prior, no gait). ``--workers K``
+evaluates it in K local processes (one BLAS/OpenMP thread each; compiled functions are loaded
+once per process), ``--scheduler ADDR`` on a Dask distributed cluster through its executor.
+
+Stop rule: a chain is long enough when it is longer than 50 integrated autocorrelation times
+(emcee's ``integrated_time`` with ``tol=50``) in every parameter; the summary says whether it is.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import math
+import os
+import warnings
+from pathlib import Path
+
+import numpy as np
+from toywalk.model.parameters import Params
+from toywalk.model.trajectory import SIGNALS, TrajectoryTable
+from toywalk.model.walker import STATE_NAMES
+
+from .fit import _bounds, _period
+from .likelihood import NO_GAIT, OK, OUTSIDE_PRIOR, LogPosterior
+from .measurement import observations
+
+__all__ = ["SampleError", "SampleSummary", "diagnose_chains", "posterior_from_fit", "sample"]
+
+#: Integrated autocorrelation times a chain must exceed (emcee's recommendation).
+TAU_FACTOR = 50
+_BLOBS = [("max_abs_eigenvalue", float), ("status", int)]
+
+
+class SampleError(ValueError):
+    """The sampling run cannot start or continue (bad fit file, mismatched chain file)."""
+
+
+@dataclasses.dataclass
+class SampleSummary:
+    """Diagnostics of a sampling run (JSON-ready through :meth:`to_json`)."""
+
+    names: list
+    ensembles: int
+    walkers: int
+    steps: int
+    data: dict
+
+    def to_json(self) -> dict:
+        return {"names": self.names, "ensembles": self.ensembles, "walkers": self.walkers,
+                "steps": self.steps, **self.data}
+
+
+def posterior_from_fit(report: dict, table: TrajectoryTable) -> tuple[LogPosterior, np.ndarray,
+                                                                     np.ndarray]:
+    """The log-posterior of a fit file's free parameters, their estimates and covariance.
+
+    Noise SDs: the file's ``*_sd`` columns where the fit used them, else the fit's estimates.
+    """
+    try:
+        params = Params.from_dict(report["params"])
+        free = list(report["free"])
+        estimates = np.array([report["estimates"][n] for n in free], dtype=float)
+        names = list(report["names"])
+        cov_all = np.array(report["covariance"], dtype=float)
+        index = [names.index(n) for n in free]
+        cov = cov_all[np.ix_(index, index)]
+        z_start = np.array([report["gait"]["fixed_point"][n] for n in STATE_NAMES], dtype=float)
+        planar = bool(report["gait"].get("planar", False))
+        noise = dict(report["noise_sd"])
+        source = report["noise_source"]
+        offsets = any(n in report["estimates"] for n in ("lean_offset",))
+    except (KeyError, TypeError, ValueError) as err:
+        raise SampleError(f"not a fit file from `toywalk fit` ({type(err).__name__}: {err})") from err
+    if not free:
+        raise SampleError("the fit has no free parameters to sample")
+    obs = observations(table)
+    if source == "file":
+        sigma = obs.sd.copy()
+    else:
+        sigma = np.array([noise[SIGNALS[s]] for s in obs.signal], dtype=float)
+    if not np.all(np.isfinite(sigma) & (sigma > 0)):
+        raise SampleError("the noise SDs are not all positive and finite")
+    bounds = [_bounds(params, n) for n in free]
+    post = LogPosterior(params, free, bounds, obs, sigma, offsets, z_start, planar,
+                        _period(params, free))
+    return post, estimates, cov
+
+
+def _initial_ball(estimates, cov, bounds, walkers, rng, post) -> np.ndarray:
+    """Walkers about the estimates (0.1 of the fit's SEs), each inside the prior with a gait."""
+    scale = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    scale = np.where(scale > 0, scale, 1e-6 * np.maximum(np.abs(estimates), 1e-12))
+    out = []
+    tries = 0
+    while len(out) < walkers:
+        tries += 1
+        if tries > 100 * walkers:
+            raise SampleError("cannot place walkers about the fit's estimates: no gait there")
+        x = estimates + 0.1 * scale * rng.standard_normal(len(estimates))
+        if all(lo <= v <= hi for v, (lo, hi) in zip(x, bounds, strict=True)) and \
+                post(x)[2] == OK:
+            out.append(x)
+    return np.array(out)
+
+
+@contextlib.contextmanager
+def _pool(workers: int, scheduler: str | None):
+    """A ``map`` provider: None (serial), local processes, or a Dask cluster's executor."""
+    if scheduler:
+        from distributed import Client
+
+        client = Client(scheduler, timeout="20s")
+        try:
+            yield client.get_executor()
+        finally:
+            client.close()
+        return
+    if workers <= 1:
+        yield None
+        return
+    import multiprocessing
+
+    # One BLAS/OpenMP thread per worker: spawned processes read these at import.
+    saved = {k: os.environ.get(k) for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
+    os.environ.update({k: "1" for k in saved})
+    try:
+        pool = multiprocessing.get_context("spawn").Pool(workers)
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+    try:
+        yield pool
+    finally:
+        pool.terminate()
+        pool.join()
+
+
+def sample(report: dict, table: TrajectoryTable, out: str | Path, *, walkers: int = 32,
+           steps: int = 1000, ensembles: int = 3, workers: int = 1, scheduler: str | None = None,
+           seed: int | None = 0, progress: bool = False) -> SampleSummary:
+    """Sample the posterior of a fit's free parameters into ``out`` (HDF5), resuming it if present.
+
+    Parameters
+    ----------
+    report : dict
+        A fit file (``toywalk fit``'s JSON).
+    table : TrajectoryTable
+        The measured walk the fit used.
+    out : path
+        The chain file; one group ``ensemble_K`` per ensemble.
+    walkers, steps, ensembles : int
+        Walkers per ensemble (at least twice the number of free parameters), steps per walker,
+        independent ensembles.
+    workers : int
+        Local processes evaluating the log-posterior.
+    scheduler : str, optional
+        Address of a Dask distributed scheduler (instead of local processes).
+    seed : int, optional
+        Makes the run reproducible.
+    progress : bool
+        Show emcee's progress bar.
+    """
+    import emcee
+
+    post, estimates, cov = posterior_from_fit(report, table)
+    ndim = len(estimates)
+    if walkers < 2 * ndim:
+        raise SampleError(f"--walkers must be at least twice the free parameters ({2 * ndim}), got {walkers}")
+    if steps < 1 or ensembles < 1:
+        raise SampleError("steps and ensembles must be >= 1")
+    out = Path(out)
+    seeds = np.random.SeedSequence(seed).spawn(ensembles)
+    with _pool(workers, scheduler) as pool:
+        for e in range(ensembles):
+            backend = emcee.backends.HDFBackend(str(out), name=f"ensemble_{e}")
+            rng = np.random.default_rng(seeds[e])
+            done = backend.iteration if _initialized(out, f"ensemble_{e}") else 0
+            if done:
+                shape = tuple(int(v) for v in backend.shape)
+                if shape != (walkers, ndim):
+                    raise SampleError(
+                        f"{out} holds ensemble {e} with (walkers, parameters) {shape}, "
+                        f"not {(walkers, ndim)}: use another --out or the same --walkers"
+                    )
+            else:
+                backend.reset(walkers, ndim)
+            sampler = emcee.EnsembleSampler(walkers, ndim, post, pool=pool, backend=backend,
+                                            blobs_dtype=_BLOBS, parameter_names=None)
+            if done >= steps:
+                continue
+            if done:
+                state = backend.get_last_sample()
+            else:
+                state = emcee.State(_initial_ball(estimates, cov, post.bounds, walkers, rng, post),
+                                    random_state=np.random.RandomState(
+                                        rng.integers(2**32 - 1)).get_state())
+            sampler.run_mcmc(state, steps - done, progress=progress)
+    summary = diagnose_chains(out, post.free, ensembles, n_steps=post.obs.n_steps, period=post.period)
+    return summary
+
+
+def _initialized(path: Path, name: str) -> bool:
+    import h5py
+
+    if not path.exists():
+        return False
+    with h5py.File(path, "r") as f:
+        return name in f and f[name].attrs.get("iteration", 0) > 0
+
+
+def diagnose_chains(path: str | Path, names, ensembles: int, n_steps: int = 0,
+                    period: int = 1) -> SampleSummary:
+    """Autocorrelation times, acceptance, R-hat and ESS (ArviZ), statuses and the stability
+    posterior of a chain file's ensembles."""
+    import emcee
+
+    chains, logps, blobs, acceptance, taus = [], [], [], [], []
+    for e in range(ensembles):
+        backend = emcee.backends.HDFBackend(str(path), name=f"ensemble_{e}", read_only=True)
+        chains.append(backend.get_chain())
+        logps.append(backend.get_log_prob())
+        blobs.append(backend.get_blobs())
+        acceptance.append(float(np.mean(backend.accepted / max(backend.iteration, 1))))
+        taus.append(emcee.autocorr.integrated_time(chains[-1], tol=0, quiet=True))
+    length = min(c.shape[0] for c in chains)
+    tau = np.max(taus, axis=0)
+    converged = bool(length > TAU_FACTOR * np.max(tau))
+    burn = min(int(math.ceil(2 * np.max(tau))), length // 2)
+    thin = max(1, int(np.max(tau) // 2))
+    kept = [c[burn::thin].reshape(-1, c.shape[-1]) for c in chains]
+    per_chain = min(len(k) for k in kept)
+    stacked = np.stack([k[:per_chain] for k in kept])  # (ensembles, draws, parameters)
+    statuses = np.concatenate([b["status"].ravel() for b in blobs])
+    eig = np.concatenate([b["max_abs_eigenvalue"][burn::thin].ravel() for b in blobs])
+    eig = eig[np.isfinite(eig)]
+    data = {
+        "length": int(length), "burn_in": burn, "thin": thin,
+        "autocorrelation_time": dict(zip(names, map(float, tau), strict=True)),
+        "long_enough": converged,
+        "stop_rule": f"chain length > {TAU_FACTOR} integrated autocorrelation times",
+        "acceptance_fraction": acceptance,
+        "fraction_no_gait": float(np.mean(statuses == NO_GAIT)),
+        "fraction_outside_prior": float(np.mean(statuses == OUTSIDE_PRIOR)),
+        "mean": dict(zip(names, map(float, stacked.reshape(-1, len(names)).mean(axis=0)), strict=True)),
+        "std": dict(zip(names, map(float, stacked.reshape(-1, len(names)).std(axis=0)), strict=True)),
+        "quantiles_5_50_95": {n: np.percentile(stacked[..., i], [5, 50, 95]).tolist()
+                              for i, n in enumerate(names)},
+        "probability_stable": float(np.mean(eig < 1.0)) if len(eig) else None,
+        "growth_factor_over_observed_steps_median": (
+            float(np.median(eig ** (n_steps / period))) if len(eig) and n_steps else None),
+    }
+    if ensembles >= 2 and per_chain >= 4:
+        rhat, ess = _arviz_stats(stacked, names)
+        data["rhat"], data["ess_bulk"] = rhat, ess
+    else:
+        data["rhat"] = data["ess_bulk"] = None
+        data["rhat_note"] = "R-hat needs at least two ensembles with kept draws"
+    return SampleSummary(names=list(names), ensembles=ensembles, walkers=chains[0].shape[1],
+                         steps=int(length), data=data)
+
+
+def _arviz_stats(stacked: np.ndarray, names) -> tuple[dict, dict]:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FutureWarning)  # ArviZ 0.x announces its 1.0 refactor
+        import arviz as az
+
+        data = az.convert_to_inference_data({n: stacked[..., i] for i, n in enumerate(names)})
+        rhat = az.rhat(data)
+        ess = az.ess(data, method="bulk")
+    return ({n: float(rhat[n]) for n in names}, {n: float(ess[n]) for n in names})
