@@ -34,14 +34,14 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 from toywalk.model.collocation import BVP, bvp, cycle_jacobian, initial_guess
 from toywalk.model.effects import EFFECTS
-from toywalk.model.gait import GaitNotFound, find_gait, solve_fixed_point
+from toywalk.model.gait import GaitNotFound, _lateral_singular, find_gait, solve_fixed_point
 from toywalk.model.parameters import INPUT_NAMES, PARAMETER_NAMES, ParameterError, Params
 from toywalk.model.trajectory import SIGNALS, TrajectoryTable
-from toywalk.model.walker import STATE_NAMES, Walker
+from toywalk.model.walker import STATE_NAMES, Walker, is_planar_symmetric
 
 from .measurement import OFFSETS, MeasurementError, Observations, observations, operator
 
-__all__ = ["FitError", "FitResult", "fit"]
+__all__ = ["FitError", "FitResult", "fit", "gait_period", "parameter_bounds"]
 
 #: Noise SD (rad) assumed for the first pass when the file gives none; the second pass uses the
 #: per-signal RMS of the first pass's residuals.
@@ -152,7 +152,9 @@ def _check_free(params: Params, free) -> list[str]:
     return names
 
 
-def _bounds(params: Params, name: str) -> tuple[float, float]:
+def parameter_bounds(params: Params, name: str) -> tuple[float, float]:
+    """The physical bounds of a parameter-file name (effects: their declaration; lengths and
+    masses non-negative; foot radii below the leg length; slope within +-pi/2)."""
     if name.startswith("effects."):
         return EFFECTS[name.split(".", 1)[1]].bounds
     low, high = _BASE_BOUNDS.get(name, (-math.inf, math.inf))
@@ -175,7 +177,9 @@ def _scale(params: Params, name: str) -> float:
     return max(value, 0.01 * params.leg_length)  # lengths
 
 
-def _period(params: Params, free: list[str]) -> int:
+def gait_period(params: Params, free) -> int:
+    """Steps per period of the gait to fit: 2 when the walker or a free effect breaks the mirror
+    symmetry, else 1."""
     breaking = any(n.startswith("effects.") and EFFECTS[n.split(".", 1)[1]].breaks_symmetry for n in free)
     return 2 if breaking or params.breaks_symmetry else 1
 
@@ -187,7 +191,8 @@ def _start(params: Params, period: int, free: list[str], z_guess):
     """The starting gait: planar only when the walker is and stays planar (a point-mass limit)."""
     try:
         gait = find_gait(params) if z_guess is None else None
-        planar = gait.planar if gait is not None else False
+        planar = gait.planar if gait is not None else (is_planar_symmetric(params)
+                                                        and _lateral_singular(params))
         if planar and _PLANAR_BREAKERS & set(free):
             raise FitError("this walker is solved in its planar reduction (a point-mass limit): "
                            f"{sorted(_PLANAR_BREAKERS & set(free))} cannot be fitted")
@@ -253,7 +258,7 @@ def fit(table: TrajectoryTable, params: Params, free, *, offsets: bool = True,
         obs = observations(table)
     except MeasurementError as err:
         raise FitError(str(err)) from err
-    period = _period(params, free)
+    period = gait_period(params, free)
     walker, gait = _start(params, period, free, z_guess)
     planar = walker.planar
     prob = bvp(planar, n_intervals, degree, period)
@@ -324,15 +329,19 @@ class _Problem:
         })
         low, high = np.full(len(x.nz), -np.inf), np.full(len(x.nz), np.inf)
         for j, name in enumerate(free):
-            lo, hi = _bounds(params, name)
+            lo, hi = parameter_bounds(params, name)
             low[n_w + j] = (lo - self.theta0[j]) / self.scale[j]
             high[n_w + j] = (hi - self.theta0[j]) / self.scale[j]
         if not offsets:
             low[n_w + n_f:] = high[n_w + n_f:] = 0.0
         self.lbx, self.ubx = low, high
+        self.theta_low = self.theta0 + self.scale * low[n_w:n_w + n_f]
+        self.theta_high = self.theta0 + self.scale * high[n_w:n_w + n_f]
 
     def theta(self, x: np.ndarray) -> np.ndarray:
-        return self.theta0 + self.scale * x[self.n_w:self.n_w + len(self.free)]
+        """The free parameters, clipped into their bounds (IPOPT may end a hair outside one)."""
+        theta = self.theta0 + self.scale * x[self.n_w:self.n_w + len(self.free)]
+        return np.clip(theta, self.theta_low, self.theta_high)
 
     def p_full(self, theta: np.ndarray) -> np.ndarray:
         p = self.p0.copy()
@@ -420,7 +429,10 @@ class _Problem:
         corr = cov / np.outer(np.maximum(std_all, 1e-300), np.maximum(std_all, 1e-300))
         std = dict(zip(names, map(float, std_all), strict=True))
         for j, name in enumerate(self.free):
-            lo, hi = _bounds(self.params, name)
+            if std[name] > self.scale[j]:
+                notes.append(f"{name} is weakly determined by these data: standard error "
+                             f"{std[name]:.3g} against a magnitude of {self.scale[j]:.3g}")
+            lo, hi = parameter_bounds(self.params, name)
             if min(theta[j] - lo, hi - theta[j]) <= 1e-6 * self.scale[j]:
                 notes.append(f"{name} = {theta[j]:.6g} sits on its bound [{lo:g}, {hi:g}]: its "
                              "standard error assumes it could move past it")

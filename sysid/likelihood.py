@@ -23,6 +23,7 @@ prior or where no gait exists, with a status recorded in the blob; a NaN in thet
 from __future__ import annotations
 
 import math
+import uuid
 
 import numpy as np
 from scipy.interpolate import CubicHermiteSpline
@@ -30,14 +31,16 @@ from toywalk.model.gait import GaitNotFound, solve_fixed_point
 from toywalk.model.parameters import ParameterError, Params
 from toywalk.model.walker import Walker
 
-from .measurement import Observations, components, offsets_design
+from .measurement import Observations, components, model_steps, offsets_design
 
 __all__ = ["NO_GAIT", "OK", "OUTSIDE_PRIOR", "LogPosterior", "model_angles"]
 
 #: Status codes stored with every sample (the blob's ``status``).
 OK, OUTSIDE_PRIOR, NO_GAIT = 0, 1, 2
-# Warm starts kept per process (theta, fixed point).
+# Warm starts kept per process and posterior: (theta, fixed point), the newest last. They live in
+# the process, not in the (pickled, per task) posterior object, so a pool worker keeps them.
 _CACHE = 64
+_WARM: dict[str, list] = {}
 
 
 def model_angles(gait, obs: Observations, planar: bool, walker: Walker) -> tuple[np.ndarray, np.ndarray]:
@@ -53,8 +56,7 @@ def model_angles(gait, obs: Observations, planar: bool, walker: Walker) -> tuple
         spline = CubicHermiteSpline(step.times, step.states, derivs, axis=0)
         states = spline(np.clip(obs.phase[sel], 0.0, 1.0) * step.step_time)
         out[sel] = sign[sel] * states[np.arange(len(states)), component[sel]]
-    per_step = np.zeros(obs.n_steps, dtype=int) if gait.period == 1 else np.where(obs.stance == "L", 0, 1)
-    return out, durations[per_step]
+    return out, durations[model_steps(obs, gait.period)]
 
 
 class LogPosterior:
@@ -87,18 +89,18 @@ class LogPosterior:
         self.offsets, self.planar, self.period = offsets, planar, period
         self.z_start = np.asarray(z_start, float)
         self._design = offsets_design(obs) if offsets else None
-        self._cache: list[tuple[np.ndarray, np.ndarray]] = []
+        self._token = uuid.uuid4().hex  # names this posterior's warm starts in each process
 
-    def __getstate__(self):
-        state = dict(self.__dict__)
-        state["_cache"] = []  # warm starts belong to one process
-        return state
+    @property
+    def _cache(self) -> list:
+        return _WARM.setdefault(self._token, [])
 
     def _start(self, theta: np.ndarray) -> np.ndarray:
-        if not self._cache:
+        cache = self._cache
+        if not cache:
             return self.z_start
-        dist = [np.sum(((t - theta) / np.maximum(np.abs(t), 1e-12)) ** 2) for t, _ in self._cache]
-        return self._cache[int(np.argmin(dist))][1]
+        dist = [np.sum(((t - theta) / np.maximum(np.abs(t), 1e-12)) ** 2) for t, _ in cache]
+        return cache[int(np.argmin(dist))][1]
 
     def gait(self, theta: np.ndarray, warm: bool = True):
         """The gait at ``theta`` (Newton from the nearest solved gait, else the start), or None."""

@@ -32,8 +32,8 @@ import scipy.sparse as sp
 from toywalk.model.collocation import BVP
 from toywalk.model.trajectory import SIGNALS, TrajectoryTable
 
-__all__ = ["OFFSETS", "MeasurementError", "Observations", "components", "observations", "offsets_design",
-           "operator"]
+__all__ = ["OFFSETS", "MeasurementError", "Observations", "components", "model_steps", "observations",
+           "offsets_design", "operator"]
 
 #: Nuisance offsets (rad), one per group of signals: lean, steer, and both pitches.
 OFFSETS = ("lean_offset", "steer_offset", "pitch_offset")
@@ -161,6 +161,13 @@ def _lagrange(points: np.ndarray, s: float) -> np.ndarray:
     return out
 
 
+def model_steps(obs: Observations, phases: int) -> np.ndarray:
+    """The model step (phase of the period) each measured step is compared with, shape (n_steps,):
+    always 0 for a step-periodic gait; 0 for the left leg's steps and 1 for the right leg's in a
+    stride-periodic one."""
+    return np.zeros(obs.n_steps, dtype=int) if phases == 1 else np.where(obs.stance == "L", 0, 1)
+
+
 def components(obs: Observations, phases: int, planar: bool) -> tuple[np.ndarray, np.ndarray,
                                                                        np.ndarray]:
     """Which model quantity each observation measures.
@@ -171,7 +178,7 @@ def components(obs: Observations, phases: int, planar: bool) -> tuple[np.ndarray
     for lean and steer in the planar reduction) and its sign (-1 for the lean and steer of a step
     with the right leg in stance, mirrored back).
     """
-    step_of = np.zeros(obs.n_steps, dtype=int) if phases == 1 else np.where(obs.stance == "L", 0, 1)
+    step_of = model_steps(obs, phases)
     side = np.where(obs.stance == "L", 1.0, -1.0)
     comp = {"steer": 0, "lean": 1, "st": 2, "sw": 3} if not planar else {"st": 0, "sw": 1}
     n_obs = len(obs.value)
@@ -216,5 +223,4 @@ def operator(obs: Observations, prob: BVP, planar: bool) -> tuple[sp.csr_matrix,
             cols.append(prob.state_index(model_step[i], m, r) + component[i])
             vals.append(sign[i] * weights[r])
     a = sp.csr_matrix((vals, (rows, cols)), shape=(len(obs.value), prob.phases * prob.phase_size))
-    per_step = np.zeros(obs.n_steps, dtype=int) if prob.phases == 1 else np.where(obs.stance == "L", 0, 1)
-    return a, offsets_design(obs), per_step
+    return a, offsets_design(obs), model_steps(obs, prob.phases)

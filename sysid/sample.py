@@ -31,7 +31,7 @@ from toywalk.model.parameters import Params
 from toywalk.model.trajectory import SIGNALS, TrajectoryTable
 from toywalk.model.walker import STATE_NAMES
 
-from .fit import _bounds, _period
+from .fit import gait_period, parameter_bounds
 from .likelihood import NO_GAIT, OK, OUTSIDE_PRIOR, LogPosterior
 from .measurement import observations
 
@@ -79,7 +79,7 @@ def posterior_from_fit(report: dict, table: TrajectoryTable) -> tuple[LogPosteri
         planar = bool(report["gait"].get("planar", False))
         noise = dict(report["noise_sd"])
         source = report["noise_source"]
-        offsets = any(n in report["estimates"] for n in ("lean_offset",))
+        offsets = "lean_offset" in report["estimates"]
     except (KeyError, TypeError, ValueError) as err:
         raise SampleError(f"not a fit file from `toywalk fit` ({type(err).__name__}: {err})") from err
     if not free:
@@ -91,9 +91,9 @@ def posterior_from_fit(report: dict, table: TrajectoryTable) -> tuple[LogPosteri
         sigma = np.array([noise[SIGNALS[s]] for s in obs.signal], dtype=float)
     if not np.all(np.isfinite(sigma) & (sigma > 0)):
         raise SampleError("the noise SDs are not all positive and finite")
-    bounds = [_bounds(params, n) for n in free]
+    bounds = [parameter_bounds(params, n) for n in free]
     post = LogPosterior(params, free, bounds, obs, sigma, offsets, z_start, planar,
-                        _period(params, free))
+                        gait_period(params, free))
     return post, estimates, cov
 
 

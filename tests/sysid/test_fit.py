@@ -186,3 +186,15 @@ def test_fit_command(tmp_path):
     missing = _run("fit", tmp_path / "nope.csv", "--params", params, "--free", "foot_radius",
                    "--out", tmp_path / "m.json")
     assert missing.returncode == 2 and "not found" in missing.stderr
+
+
+def test_fit_says_when_a_parameter_is_weakly_determined(toy):
+    """The stable toy leans 0.3 deg: its lateral foot radius barely shows in the angles. The fit
+    says so (standard error larger than the parameter's magnitude), and an estimate that ends on
+    its bound is clipped into it, so that the fitted walker is valid."""
+    table, _ = _walk(toy, 8, 0.002, 3)
+    result = fit(table, toy, ["foot_lateral_radius", "foot_radius"], check_jacobian=False)
+    assert any("foot_lateral_radius is weakly determined" in note for note in result.warnings)
+    assert result.std["foot_lateral_radius"] > toy.foot_lateral_radius
+    assert 0.0 <= result.params.foot_lateral_radius <= result.params.foot_radius
+    assert result.std["foot_radius"] < 0.05 * toy.foot_radius  # the other one is determined
