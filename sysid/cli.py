@@ -24,6 +24,17 @@ class CommandError(Exception):
     """Bad input or an impossible request: printed as one line, exit status 2."""
 
 
+def output_path(value: str, suffixes: tuple[str, ...], option: str = "--out") -> Path:
+    """The path an option names for writing: one of ``suffixes`` (case-insensitive), in a folder
+    that exists; otherwise :class:`CommandError` with one line."""
+    out = Path(value)
+    if out.suffix.lower() not in suffixes:
+        raise CommandError(f"{option} must name a {' or '.join(suffixes)} file, got {out}")
+    if not out.parent.is_dir():
+        raise CommandError(f"output folder does not exist: {out.parent}")
+    return out
+
+
 def _load(path: str):
     from toywalk.model.parameters import ParameterError, load_params
 
@@ -130,11 +141,7 @@ def _continue(args, params) -> int:
         ) from err
     if args.out is None:
         raise CommandError("--continue needs --out TABLE.csv (the plot is written beside it)")
-    out = Path(args.out)
-    if out.suffix != ".csv":
-        raise CommandError(f"--out must name a .csv file, got {out}")
-    if not out.parent.exists():
-        raise CommandError(f"output folder does not exist: {out.parent}")
+    out = output_path(args.out, (".csv",))
     if args.points < 2:
         raise CommandError(f"--points must be >= 2, got {args.points}")
     try:
@@ -293,11 +300,7 @@ def cmd_simulate(args) -> int:
         raise CommandError(f"--steps must be >= 1, got {args.steps}")
     if not (args.noise >= 0 and math.isfinite(args.noise)):
         raise CommandError(f"--noise must be a finite standard deviation >= 0 (rad), got {args.noise}")
-    out = Path(args.out)
-    if out.suffix != ".csv":
-        raise CommandError(f"--out must name a .csv file, got {out}")
-    if not out.parent.exists():
-        raise CommandError(f"output folder does not exist: {out.parent}")
+    out = output_path(args.out, (".csv",))
     info = _simulate_to_file(params, args.steps, out, args.noise, args.seed, str(args.params))
     print(f"{info['status']}: {info['message']}; {info['samples']} samples, "
           f"{info['heel_strikes']} heel strikes -> {out}")

@@ -20,7 +20,7 @@ def register(subparsers) -> None:
 
 
 def cmd_calibrate(args) -> int:
-    from toywalk.sysid.cli import CommandError
+    from toywalk.sysid.cli import CommandError, output_path
     from toywalk.tracking.calibrate import (
         DEFAULT_BOARD,
         BoardSpec,
@@ -29,11 +29,7 @@ def cmd_calibrate(args) -> int:
         save_calibration,
     )
 
-    out = Path(args.out)
-    if out.suffix != ".json":
-        raise CommandError(f"--out must name a .json file, got {out}")
-    if not out.parent.exists():
-        raise CommandError(f"output folder does not exist: {out.parent}")
+    out = output_path(args.out, (".json",))
     for image in args.images:
         if not Path(image).is_file():
             raise CommandError(f"image not found: {image}")

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 __all__ = ["cmd_fit", "register"]
 
@@ -24,14 +23,10 @@ def register(subparsers) -> None:
 def cmd_fit(args) -> int:
     from toywalk.model.files import atomic_write_json
     from toywalk.model.trajectory import read_trajectory
-    from toywalk.sysid.cli import CommandError, _load, _version
+    from toywalk.sysid.cli import CommandError, _load, _version, output_path
     from toywalk.sysid.fit import FitError, fit
 
-    out = Path(args.out)
-    if out.suffix != ".json":
-        raise CommandError(f"--out must name a .json file, got {out}")
-    if not out.parent.exists():
-        raise CommandError(f"output folder does not exist: {out.parent}")
+    out = output_path(args.out, (".json",))
     if args.intervals < 4:
         raise CommandError(f"--intervals must be >= 4, got {args.intervals}")
     params = _load(args.params)

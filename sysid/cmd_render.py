@@ -53,17 +53,13 @@ def cmd_render(args) -> int:
     import numpy as np
     from toywalk.model.parameters import ParameterError, load_params
     from toywalk.model.trajectory import read_trajectory, trajectory_paths
-    from toywalk.sysid.cli import CommandError
+    from toywalk.sysid.cli import CommandError, output_path
     from toywalk.tracking.camera import CameraError, load_camera
     from toywalk.tracking.markers import LayoutError, default_layout, load_layout
     from toywalk.tracking.render import RenderError, RenderOptions, output_paths, render
     from toywalk.tracking.scene import default_camera_for
 
-    out = Path(args.out)
-    if out.suffix.lower() not in (".mp4", ".avi"):
-        raise CommandError(f"--out must name a .mp4 or .avi file, got {out}")
-    if not out.parent.is_dir():
-        raise CommandError(f"output folder does not exist: {out.parent}")
+    out = output_path(args.out, (".mp4", ".avi"))
     traj_path = Path(args.trajectory)
     if traj_path.suffix != ".csv":
         raise CommandError(f"the trajectory must be a .csv file, got {traj_path}")

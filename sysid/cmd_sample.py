@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
@@ -29,28 +28,17 @@ def register(subparsers) -> None:
 def cmd_sample(args) -> int:
     import sys
 
-    from toywalk.model.files import atomic_write_json
+    from toywalk.model.files import atomic_write_json, read_json_object
     from toywalk.model.trajectory import read_trajectory
-    from toywalk.sysid.cli import CommandError
+    from toywalk.sysid.cli import CommandError, output_path
     from toywalk.sysid.fit import FitError
     from toywalk.sysid.measurement import MeasurementError
     from toywalk.sysid.sample import SampleError, sample
 
-    out = Path(args.out)
-    if out.suffix not in (".h5", ".hdf5"):
-        raise CommandError(f"--out must name an .h5 file, got {out}")
-    if not out.parent.exists():
-        raise CommandError(f"output folder does not exist: {out.parent}")
+    out = output_path(args.out, (".h5", ".hdf5"))
     if args.workers < 1:
         raise CommandError(f"--workers must be >= 1, got {args.workers}")
-    try:
-        report = json.loads(Path(args.fit).read_text())
-    except FileNotFoundError as err:
-        raise CommandError(f"fit file not found: {args.fit}") from err
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
-        raise CommandError(f"{args.fit} is not a fit file (JSON): {err}") from err
-    if not isinstance(report, dict):
-        raise CommandError(f"{args.fit} is not a fit file from `toywalk fit`")
+    report = read_json_object(args.fit, "fit file", CommandError)
     try:
         table = read_trajectory(args.trajectory)
     except (OSError, ValueError) as err:

@@ -56,17 +56,13 @@ def _default(given, kind: str, name: str) -> Path:
 
 def cmd_track(args) -> int:
     from toywalk.model.trajectory import trajectory_paths, write_trajectory
-    from toywalk.sysid.cli import CommandError, _version
+    from toywalk.sysid.cli import CommandError, _version, output_path
     from toywalk.tracking.camera import CameraError, load_camera
     from toywalk.tracking.markers import LayoutError, load_layout
     from toywalk.tracking.track import TrackError, track_video
 
     video = Path(args.video)
-    out = Path(args.out)
-    if out.suffix != ".csv":
-        raise CommandError(f"--out must name a .csv file, got {out}")
-    if not out.parent.exists():
-        raise CommandError(f"output folder does not exist: {out.parent}")
+    out = output_path(args.out, (".csv",))
     overlay = Path(args.overlay) if args.overlay else None
     if overlay is not None and (overlay.suffix.lower() != ".mp4" or not overlay.parent.exists()):
         raise CommandError(f"--overlay must name a .mp4 file in an existing folder, got {overlay}")

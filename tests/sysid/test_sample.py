@@ -121,7 +121,7 @@ def test_sample_refuses_bad_input(fitted, tmp_path):
     bad = tmp_path / "bad.json"
     bad.write_text("{not json")
     code, _, err = _run("sample", bad, walk, "--out", tmp_path / "c.h5")
-    assert code == 2 and "not a fit file" in err and len(err.strip().splitlines()) == 1
+    assert code == 2 and "cannot read fit file" in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "c.h5").exists()
     code, _, err = _run("sample", fit, walk, "--out", tmp_path / "c.h5", "--walkers", "2")
     assert code == 2 and "at least twice" in err
