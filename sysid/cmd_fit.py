@@ -17,6 +17,9 @@ def register(subparsers) -> None:
     p.add_argument("--no-offsets", action="store_true",
                    help="do not fit the ramp-frame offsets of lean, steer and pitch")
     p.add_argument("--intervals", type=int, default=30, help="collocation intervals per step")
+    p.add_argument("--prior", action="append", metavar="NAME=MEAN,SD",
+                   help="a Gaussian prior on a free parameter, e.g. the slope as measured: "
+                        "slope=0.0785,0.002 (repeatable)")
     p.set_defaults(func=cmd_fit)
 
 
@@ -33,12 +36,21 @@ def cmd_fit(args) -> int:
     free = [name.strip() for name in args.free.split(",") if name.strip()]
     if not free:
         raise CommandError("--free names no parameter")
+    priors = {}
+    for item in args.prior or ():
+        name, _, value = item.partition("=")
+        try:
+            mean, sd = (float(v) for v in value.split(","))
+        except ValueError as err:
+            raise CommandError(f"--prior expects NAME=MEAN,SD, got {item!r}") from err
+        priors[name.strip()] = (mean, sd)
     try:
         table = read_trajectory(args.trajectory)
     except (OSError, ValueError) as err:
         raise CommandError(str(err)) from err
     try:
-        result = fit(table, params, free, offsets=not args.no_offsets, n_intervals=args.intervals)
+        result = fit(table, params, free, offsets=not args.no_offsets, n_intervals=args.intervals,
+                     priors=priors)
     except FitError as err:
         raise CommandError(str(err)) from err
     report = result.to_json()

@@ -39,8 +39,30 @@ def _save(fig, path: Path) -> None:
         tmp.unlink(missing_ok=True)
 
 
-def write_report(chain: Path, summary: dict, folder: Path) -> list[Path]:
-    """Write trace.png, corner.png, eigenvalues.png, report.md and report.json into ``folder``."""
+def _predictive(post, draws: np.ndarray, rng) -> tuple[np.ndarray, np.ndarray]:
+    """5 and 95 % quantiles of the model's angle at every observation over posterior draws
+    (offsets at their best values for each draw, as the likelihood profiles them)."""
+    from .likelihood import model_angles
+
+    curves = []
+    for theta in draws[rng.choice(len(draws), size=min(40, len(draws)), replace=False)]:
+        gait, walker = post.gait(theta)
+        if gait is None:
+            continue
+        angles, _ = model_angles(gait, post.obs, post.planar, walker)
+        if post.offsets:
+            b, weights = post._design, 1.0 / post.sigma**2
+            best = (b.T @ (weights * (post.obs.value - angles))) / np.maximum(b.T @ weights, 1e-300)
+            angles = angles + b @ best
+        curves.append(angles)
+    curves = np.array(curves)
+    return np.percentile(curves, 5, axis=0), np.percentile(curves, 95, axis=0)
+
+
+def write_report(chain: Path, summary: dict, folder: Path, post=None) -> list[Path]:
+    """Write trace.png, corner.png, eigenvalues.png, report.md and report.json into ``folder``;
+    with the log-posterior ``post``, also predictive.png (posterior predictive bands over the
+    measured signals)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -71,6 +93,26 @@ def write_report(chain: Path, summary: dict, folder: Path) -> list[Path]:
                         title_fmt=".3g", title_kwargs={"fontsize": 8}, label_kwargs={"fontsize": 8})
     _save(fig, folder / "corner.png")
     written.append(folder / "corner.png")
+
+    if post is not None:
+        from toywalk.model.trajectory import SIGNALS
+
+        low, high = _predictive(post, draws, np.random.default_rng(0))
+        obs = post.obs
+        fig, axes = plt.subplots(len(SIGNALS), 1, figsize=(8, 8), sharex=True)
+        for s_i, (ax, name) in enumerate(zip(axes, SIGNALS, strict=True)):
+            sel = np.flatnonzero(obs.signal == s_i)
+            order = sel[np.argsort(obs.time[sel])]
+            ax.fill_between(obs.time[order], np.degrees(low[order]), np.degrees(high[order]),
+                            color="C0", alpha=0.35, lw=0, label="model, 5-95 % of the posterior")
+            ax.plot(obs.time[order], np.degrees(obs.value[order]), ".", color="k", ms=2,
+                    label="measured")
+            ax.set_ylabel(f"{name} (deg)", fontsize=8)
+        axes[0].legend(fontsize=7, loc="upper right")
+        axes[-1].set_xlabel("time (s)")
+        fig.tight_layout()
+        _save(fig, folder / "predictive.png")
+        written.append(folder / "predictive.png")
 
     eig = np.concatenate([b["max_abs_eigenvalue"][burn::thin].ravel() for _, b in runs])
     eig = eig[np.isfinite(eig)]
@@ -103,6 +145,9 @@ def write_report(chain: Path, summary: dict, folder: Path) -> list[Path]:
         lines += ["", f"Probability that the fitted gait is stable: {summary['probability_stable']:.3f}."]
     lines += ["", "![trace](trace.png)", "", "![corner](corner.png)", "",
               "![eigenvalues](eigenvalues.png)", ""]
+    if post is not None:
+        lines += ["Posterior predictive bands over the measured signals:", "",
+                  "![predictive](predictive.png)", ""]
     atomic_write_text(folder / "report.md", "\n".join(lines))
     atomic_write_json(folder / "report.json", summary)
     return written + [folder / "report.md", folder / "report.json"]

@@ -120,6 +120,7 @@ class FitResult:
     gait: dict
     warnings: list
     jacobian_check: dict
+    priors: dict = dataclasses.field(default_factory=dict)
     solution: np.ndarray = dataclasses.field(repr=False, default=None)
 
     def to_json(self) -> dict:
@@ -134,6 +135,7 @@ class FitResult:
             "chi2": self.chi2, "n_residuals": self.n_residuals,
             "reduced_chi2": self.chi2 / max(self.n_residuals - len(self.names), 1),
             "gait": self.gait, "warnings": self.warnings, "jacobian_check": self.jacobian_check,
+            "priors": {n: list(v) for n, v in self.priors.items()},
             "params": self.params.to_dict(),
             "units": {"angles": "rad", "durations": "s", "parameters": "SI (pipeline.md)"},
         }
@@ -150,6 +152,21 @@ def _check_free(params: Params, free) -> list[str]:
     if len(set(names)) != len(names):
         raise FitError(f"a parameter is named twice in {names}")
     return names
+
+
+def _check_priors(priors: dict, free: list[str]) -> dict:
+    out = {}
+    for name, value in priors.items():
+        if name not in free:
+            raise FitError(f"a prior on {name!r}, which is not free (free: {', '.join(free)})")
+        try:
+            mean, sd = (float(v) for v in value)
+        except (TypeError, ValueError) as err:
+            raise FitError(f"the prior on {name} must be (mean, sd), got {value!r}") from err
+        if not (math.isfinite(mean) and math.isfinite(sd) and sd > 0):
+            raise FitError(f"the prior on {name} needs a finite mean and a positive sd, got {value!r}")
+        out[name] = (mean, sd)
+    return out
 
 
 def parameter_bounds(params: Params, name: str) -> tuple[float, float]:
@@ -222,7 +239,7 @@ def _sparse(m: ca.DM) -> sp.csc_matrix:
 # ------------------------------------------------------------------------------------ fit
 def fit(table: TrajectoryTable, params: Params, free, *, offsets: bool = True,
         n_intervals: int = 30, degree: int = 4, z_guess=None, max_iter: int = 500,
-        check_jacobian: bool = True) -> FitResult:
+        check_jacobian: bool = True, priors: dict | None = None) -> FitResult:
     """Fit ``free`` parameters of ``params`` to the measured walk ``table``.
 
     Parameters
@@ -245,6 +262,9 @@ def fit(table: TrajectoryTable, params: Params, free, *, offsets: bool = True,
     check_jacobian : bool
         Cross-check the reduced Jacobian against central differences (two BVP solves per free
         parameter); the result's ``jacobian_check`` is empty without it.
+    priors : dict of str to (float, float), optional
+        Gaussian priors ``name -> (mean, sd)`` on free parameters, such as the slope as measured
+        with its error; each adds the residual ``(theta - mean) / sd``.
 
     Raises
     ------
@@ -266,8 +286,9 @@ def fit(table: TrajectoryTable, params: Params, free, *, offsets: bool = True,
     if not offsets:
         b_op = np.zeros_like(b_op)
     w0 = _feasible_start(prob, walker, gait.fixed_point)
+    priors = _check_priors(priors or {}, free)
     problem = _Problem(prob, planar, params, free, obs, a_op, b_op, model_step, offsets, max_iter,
-                       check_jacobian)
+                       check_jacobian, priors)
     sd_known = obs.sd_known
     sigma = obs.sd.copy() if sd_known else np.full(len(obs.value), _FIRST_PASS_SD)
     x0 = np.concatenate([w0, np.zeros(len(free)), np.zeros(len(OFFSETS))])
@@ -297,9 +318,13 @@ class _Problem:
     """The fit's NLP, built once per call of :func:`fit`."""
 
     def __init__(self, prob: BVP, planar: bool, params: Params, free, obs: Observations, a_op, b_op,
-                 model_step, offsets: bool, max_iter: int, check_jacobian: bool):
+                 model_step, offsets: bool, max_iter: int, check_jacobian: bool, priors: dict):
         self.prob, self.planar, self.params, self.free, self.obs = prob, planar, params, free, obs
-        self.check_jacobian = check_jacobian
+        self.check_jacobian, self.priors = check_jacobian, priors
+        # Prior rows: (theta_j - mean) / sd for each free parameter with a prior.
+        self.prior_index = [free.index(n) for n in priors]
+        self.prior_mean = np.array([priors[n][0] for n in priors])
+        self.prior_sd = np.array([priors[n][1] for n in priors])
         self.a_op, self.b_op, self.model_step = a_op, b_op, model_step
         self.offsets = offsets
         n_w = prob.phases * prob.phase_size
@@ -320,9 +345,12 @@ class _Problem:
         r_ang = (model - ca.DM(obs.value)) * inv_sd
         durations = ca.vertcat(*[w[prob.duration_index(int(j))] for j in model_step])
         r_dur = (durations - ca.DM(obs.durations)) / ca.DM(obs.duration_sd)
-        f = 0.5 * (ca.sumsqr(r_ang) + ca.sumsqr(r_dur))
+        theta = ca.DM(self.theta0) + ca.DM(self.scale) * delta
+        r_prior = ca.vertcat(*[(theta[j] - m) / sd for j, m, sd in
+                               zip(self.prior_index, self.prior_mean, self.prior_sd, strict=True)])
+        f = 0.5 * (ca.sumsqr(r_ang) + ca.sumsqr(r_dur) + ca.sumsqr(r_prior))
         g = prob.constraints(w, p)
-        self.residuals_fn = ca.Function("residuals", [x, inv_sd], [ca.vertcat(r_ang, r_dur)])
+        self.residuals_fn = ca.Function("residuals", [x, inv_sd], [ca.vertcat(r_ang, r_dur, r_prior)])
         self.solver = ca.nlpsol("fit", "ipopt", {"x": x, "p": inv_sd, "f": f, "g": g}, {
             "ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
             "ipopt.tol": 1e-10, "ipopt.max_iter": max_iter,
@@ -372,8 +400,11 @@ class _Problem:
         rows_ang = (self.a_op @ dw) / sigma[:, None]
         rows_dur = np.array([dw[prob.duration_index(int(j))] for j in self.model_step])
         rows_dur = rows_dur.reshape(len(self.model_step), len(self.free)) / obs.duration_sd[:, None]
-        j_theta = np.vstack([rows_ang, rows_dur])
-        j_off = np.vstack([self.b_op / sigma[:, None], np.zeros((len(self.model_step), len(OFFSETS)))])
+        rows_prior = np.zeros((len(self.prior_index), len(self.free)))
+        rows_prior[np.arange(len(self.prior_index)), self.prior_index] = 1.0 / self.prior_sd
+        j_theta = np.vstack([rows_ang, rows_dur, rows_prior])
+        j_off = np.vstack([self.b_op / sigma[:, None],
+                           np.zeros((len(self.model_step) + len(self.prior_index), len(OFFSETS)))])
         if not self.offsets:
             j_off = j_off[:, :0]
         return np.hstack([j_theta, j_off])
@@ -469,7 +500,7 @@ class _Problem:
             residual_rms_by_phase=by_phase, chi2=float(whitened @ whitened),
             n_residuals=len(whitened), success=success, status=str(stats["return_status"]),
             iterations=int(stats["iter_count"]), params=fitted, gait=gait, warnings=notes,
-            jacobian_check=check, solution=x)
+            jacobian_check=check, priors=self.priors, solution=x)
 
     def _gait(self, x: np.ndarray, fitted: Params) -> dict:
         prob = self.prob

@@ -80,11 +80,16 @@ class LogPosterior:
         A gait near the posterior (the fit's), for the first warm start.
     planar : bool
     period : int
+    priors : dict of str to (float, float), optional
+        Gaussian priors ``name -> (mean, sd)`` on some free parameters (on top of the bounds).
     """
 
     def __init__(self, params: Params, free, bounds, obs: Observations, sigma: np.ndarray,
-                 offsets: bool, z_start: np.ndarray, planar: bool, period: int):
+                 offsets: bool, z_start: np.ndarray, planar: bool, period: int,
+                 priors: dict | None = None):
         self.params, self.free, self.bounds = params, list(free), [tuple(b) for b in bounds]
+        priors = priors or {}
+        self._prior = [(self.free.index(n), float(m), float(s)) for n, (m, s) in priors.items()]
         self.obs, self.sigma = obs, np.asarray(sigma, float)
         self.offsets, self.planar, self.period = offsets, planar, period
         self.z_start = np.asarray(z_start, float)
@@ -146,7 +151,8 @@ class LogPosterior:
             return -math.inf, math.nan, OUTSIDE_PRIOR
         if gait is None:
             return -math.inf, math.nan, NO_GAIT
-        value = -0.5 * self.chi2(gait, walker)
+        value = -0.5 * (self.chi2(gait, walker)
+                        + sum(((theta[j] - m) / s) ** 2 for j, m, s in self._prior))
         if math.isnan(value):
             at = dict(zip(self.free, theta.tolist(), strict=True))
             raise ValueError(f"the log-likelihood is NaN at {at}")

@@ -92,8 +92,9 @@ def posterior_from_fit(report: dict, table: TrajectoryTable) -> tuple[LogPosteri
     if not np.all(np.isfinite(sigma) & (sigma > 0)):
         raise SampleError("the noise SDs are not all positive and finite")
     bounds = [parameter_bounds(params, n) for n in free]
+    priors = {n: tuple(v) for n, v in report.get("priors", {}).items()}
     post = LogPosterior(params, free, bounds, obs, sigma, offsets, z_start, planar,
-                        gait_period(params, free))
+                        gait_period(params, free), priors)
     return post, estimates, cov
 
 

@@ -198,3 +198,20 @@ def test_fit_says_when_a_parameter_is_weakly_determined(toy):
     assert result.std["foot_lateral_radius"] > toy.foot_lateral_radius
     assert 0.0 <= result.params.foot_lateral_radius <= result.params.foot_radius
     assert result.std["foot_radius"] < 0.05 * toy.foot_radius  # the other one is determined
+
+
+def test_a_prior_on_the_slope_combines_with_the_data(toy):
+    """The slope as measured with its error: a Gaussian prior adds (theta - mean) / sd to the
+    residuals. With a prior twice as tight as the data, 2 data-SEs away, the estimate moves
+    towards the prior's mean and its SE falls below both the prior's SD and the data's SE."""
+    table, _ = _walk(toy, 8, 0.002, 4)
+    free = ["slope", "foot_radius"]
+    data_only = fit(table, toy, free, check_jacobian=False)
+    sd = 0.5 * data_only.std["slope"]
+    mean = toy.slope + 2 * data_only.std["slope"]
+    both = fit(table, toy, free, priors={"slope": (mean, sd)}, check_jacobian=False)
+    assert both.success
+    assert both.std["slope"] < min(sd, data_only.std["slope"])
+    assert abs(both.estimates["slope"] - mean) < abs(data_only.estimates["slope"] - mean)
+    with pytest.raises(FitError, match="not free"):
+        fit(table, toy, ["foot_radius"], priors={"slope": (0.05, 0.01)})

@@ -88,11 +88,15 @@ def test_killed_run_resumes_with_every_stored_step(fitted, tmp_path):
     proc.communicate()  # reap it and close its pipes
     before = _chain(chain)
     assert 10 <= len(before) < 60
-    code, out, err = _run(*args)
+    code, out, err = _run(*args, "--report", tmp_path / "report")
     assert code == 0, err
     after = _chain(chain)
     assert after.shape == (60, 6, 2)
     np.testing.assert_array_equal(after[:len(before)], before)
+    summary = json.loads(chain.with_suffix(".json").read_text())
+    assert summary["length"] == 60 and summary["names"] == ["foot_radius", "com_offset[1]"]
+    for name in ("trace.png", "corner.png", "eigenvalues.png", "predictive.png", "report.md"):
+        assert (tmp_path / "report" / name).stat().st_size > 0, name
 
 
 def test_workers_and_dask_give_the_serial_chain(fitted, tmp_path):
