@@ -71,7 +71,7 @@ def _print_gait(report: dict, out=sys.stdout) -> None:
           file=out)
     stride = report["map"] == "stride"
     if stride:
-        print("periodic over      a stride (two steps): an effect breaks the left-right symmetry; "
+        print("periodic over     a stride (two steps): an effect breaks the left-right symmetry; "
               "eigenvalues are the stride map's", file=out)
         times = ", ".join(f"{t:.6g}" for t in report["step_times"])
         print(f"step times        {times} s  (stride {report['stride_time']:.6g} s)", file=out)
