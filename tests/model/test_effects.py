@@ -513,3 +513,37 @@ def test_planar_reduction_carries_the_symmetric_effects():
         c3 = full.eng.k["collision"](x3, full.p)[0].ravel()
         cp = planar.eng.k["collision"](xp, planar.p)[0].ravel()
         assert_allclose(cp[:4], c3[[2, 3, 6, 7]], rtol=1e-11, atol=1e-12)
+
+
+def test_geometry_effects_match_numpy_kinematics():
+    """Unequal legs and a tilted ramp against NumPy (model.kinematics, not the CasADi model):
+    the legs' centres of mass from the hips and rotations with per-leg offsets, on either side in
+    stance, and the potential energy in the tilted gravity field."""
+    from toywalk.model.kinematics import leg_poses
+
+    a, beta = 0.2, 0.05
+    params = Params(**GENERAL, **FEET["torus"]).replace(**{"effects.asymmetry": a,
+                                                          "effects.cross_slope": beta})
+    walker = Walker(params)
+    d = np.array(params.com_offset)
+    rng = np.random.default_rng(17)
+    for x in _random_states(rng, 4):
+        x[4:8] = 0.0  # at rest: the energy is the potential alone
+        for side in (1, -1):
+            poses = leg_poses(params, *x[:4], "L", (0.0, 0.0))
+            # The described stance leg is the physical left one (side +1) or right one (-1).
+            d_st = d * [1, 1 + 0.5 * a * side, 1]
+            d_sw = d * [1, -(1 - 0.5 * a * side), 1]
+            g1 = poses.hip["L"] + poses.rotation["L"] @ d_st
+            g2 = poses.hip["R"] + poses.rotation["R"] @ d_sw
+            pts = walker.points(x, side)
+            assert_allclose(pts[7], g1, atol=1e-14)
+            assert_allclose(pts[8], g2, atol=1e-14)
+            alpha, g = params.slope, params.gravity
+            gvec = g * np.array([math.sin(alpha), -side * math.cos(alpha) * math.sin(beta),
+                                 -math.cos(alpha) * math.cos(beta)])
+            contact = np.r_[x[8], x[9], 0.0]
+            axle = poses.hip["L"] - 0.5 * params.hip_width * poses.rotation["L"][:, 1]
+            masses = ((params.leg_mass, g1), (params.leg_mass, g2), (params.axle_mass, axle))
+            expected = -sum(m * gvec @ (contact + p) for m, p in masses)
+            assert_allclose(walker.energy(x, side), expected, rtol=1e-13, atol=1e-16)
