@@ -350,6 +350,13 @@ class _Problem:
                                zip(self.prior_index, self.prior_mean, self.prior_sd, strict=True)])
         f = 0.5 * (ca.sumsqr(r_ang) + ca.sumsqr(r_dur) + ca.sumsqr(r_prior))
         g = prob.constraints(w, p)
+        # A foot's sideways radius never exceeds its fore-aft one (model.md section 2): a bound
+        # when one of them is free, a constraint when both are.
+        self.lbg, self.ubg = prob.lbg, prob.ubg
+        if {"foot_radius", "foot_lateral_radius"} <= set(free):
+            k_r, k_rho = free.index("foot_radius"), free.index("foot_lateral_radius")
+            g = ca.vertcat(g, theta[k_r] - theta[k_rho])
+            self.lbg, self.ubg = np.r_[prob.lbg, 0.0], np.r_[prob.ubg, np.inf]
         self.residuals_fn = ca.Function("residuals", [x, inv_sd], [ca.vertcat(r_ang, r_dur, r_prior)])
         self.solver = ca.nlpsol("fit", "ipopt", {"x": x, "p": inv_sd, "f": f, "g": g}, {
             "ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
@@ -358,6 +365,10 @@ class _Problem:
         low, high = np.full(len(x.nz), -np.inf), np.full(len(x.nz), np.inf)
         for j, name in enumerate(free):
             lo, hi = parameter_bounds(params, name)
+            if name == "foot_radius" and "foot_lateral_radius" not in free:
+                lo = max(lo, params.foot_lateral_radius)
+            if name == "foot_lateral_radius" and "foot_radius" not in free:
+                hi = min(hi, params.foot_radius)
             low[n_w + j] = (lo - self.theta0[j]) / self.scale[j]
             high[n_w + j] = (hi - self.theta0[j]) / self.scale[j]
         if not offsets:
@@ -368,8 +379,12 @@ class _Problem:
 
     def theta(self, x: np.ndarray) -> np.ndarray:
         """The free parameters, clipped into their bounds (IPOPT may end a hair outside one)."""
-        theta = self.theta0 + self.scale * x[self.n_w:self.n_w + len(self.free)]
-        return np.clip(theta, self.theta_low, self.theta_high)
+        theta = np.clip(self.theta0 + self.scale * x[self.n_w:self.n_w + len(self.free)],
+                        self.theta_low, self.theta_high)
+        if {"foot_radius", "foot_lateral_radius"} <= set(self.free):  # and its constraint
+            k_r, k_rho = self.free.index("foot_radius"), self.free.index("foot_lateral_radius")
+            theta[k_rho] = min(theta[k_rho], theta[k_r])
+        return theta
 
     def p_full(self, theta: np.ndarray) -> np.ndarray:
         p = self.p0.copy()
@@ -377,8 +392,8 @@ class _Problem:
         return p
 
     def solve(self, x0: np.ndarray, sigma: np.ndarray):
-        sol = self.solver(x0=x0, p=1.0 / sigma, lbx=self.lbx, ubx=self.ubx, lbg=self.prob.lbg,
-                          ubg=self.prob.ubg)
+        sol = self.solver(x0=x0, p=1.0 / sigma, lbx=self.lbx, ubx=self.ubx, lbg=self.lbg,
+                          ubg=self.ubg)
         return np.array(sol["x"]).ravel(), self.solver.stats()
 
     def angle_residuals(self, x: np.ndarray) -> np.ndarray:
@@ -463,7 +478,7 @@ class _Problem:
             if std[name] > self.scale[j]:
                 notes.append(f"{name} is weakly determined by these data: standard error "
                              f"{std[name]:.3g} against a magnitude of {self.scale[j]:.3g}")
-            lo, hi = parameter_bounds(self.params, name)
+            lo, hi = self.theta_low[j], self.theta_high[j]
             if min(theta[j] - lo, hi - theta[j]) <= 1e-6 * self.scale[j]:
                 notes.append(f"{name} = {theta[j]:.6g} sits on its bound [{lo:g}, {hi:g}]: its "
                              "standard error assumes it could move past it")

@@ -68,6 +68,10 @@ def posterior_from_fit(report: dict, table: TrajectoryTable) -> tuple[LogPosteri
     Noise SDs: the file's ``*_sd`` columns where the fit used them, else the fit's estimates.
     """
     try:
+        if not report["success"] or not report["gait"]:
+            notes = "; ".join(report.get("warnings", [])) or "no gait at the estimates"
+            raise SampleError(f"the fit did not succeed ({report['status']}: {notes}): sample from "
+                              "a fit that did")
         params = Params.from_dict(report["params"])
         free = list(report["free"])
         estimates = np.array([report["estimates"][n] for n in free], dtype=float)
@@ -80,6 +84,8 @@ def posterior_from_fit(report: dict, table: TrajectoryTable) -> tuple[LogPosteri
         noise = dict(report["noise_sd"])
         source = report["noise_source"]
         offsets = "lean_offset" in report["estimates"]
+    except SampleError:
+        raise
     except (KeyError, TypeError, ValueError) as err:
         raise SampleError(f"not a fit file from `toywalk fit` ({type(err).__name__}: {err})") from err
     if not free:

@@ -215,3 +215,21 @@ def test_a_prior_on_the_slope_combines_with_the_data(toy):
     assert abs(both.estimates["slope"] - mean) < abs(data_only.estimates["slope"] - mean)
     with pytest.raises(FitError, match="not free"):
         fit(table, toy, ["foot_radius"], priors={"slope": (0.05, 0.01)})
+
+
+def test_foot_radii_stay_ordered():
+    """A spherical foot (compass-3d: rho = r): freeing the fore-aft radius alone keeps it at or
+    above the fixed sideways one (a bound, reported when the estimate sits on it); freeing both
+    keeps rho <= r (a constraint). Either way the fitted walker is valid, and a failed fit is
+    refused by the sampler with the reason."""
+    params = load_params(DATA / "params" / "compass-3d.toml")
+    table, _ = _walk(params, 6, 0.003, 21)
+    one = fit(table, params, ["com_offset[2]", "foot_radius"], check_jacobian=False)
+    assert one.success and one.params.foot_radius >= params.foot_lateral_radius
+    both = fit(table, params, ["foot_radius", "foot_lateral_radius"], check_jacobian=False)
+    assert both.success and both.params.foot_lateral_radius <= both.params.foot_radius
+    from toywalk.sysid.sample import SampleError, posterior_from_fit
+
+    failed = dict(one.to_json(), success=False, gait={}, warnings=["made up for the test"])
+    with pytest.raises(SampleError, match="did not succeed"):
+        posterior_from_fit(failed, table)
