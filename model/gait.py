@@ -370,7 +370,7 @@ def find_gait(params: Params, z_guess: np.ndarray | None = None, planar: bool | 
     walker = Walker(params, planar=planar, steps_per_time_unit=steps_per_time_unit)
     if z_guess is not None:
         return solve_fixed_point(walker, z_guess)
-    if any(value != EFFECTS[name].null for name, value in params.effects.items()):
+    if params.active_effects:
         # Effects on: the seed model's gait first, then the effects raised from null along the
         # gaits (the stride map's fixed points where an effect breaks the mirror symmetry).
         seed = _without_effects(params)

@@ -236,11 +236,14 @@ class Params:
         return np.append(self.vector(), float(side))
 
     @property
+    def active_effects(self) -> tuple[str, ...]:
+        """Names of the effects whose strength is not at its null value."""
+        return tuple(k for k, v in self.effects.items() if v != EFFECTS[k].null)
+
+    @property
     def breaks_symmetry(self) -> bool:
         """True when a symmetry-breaking effect is on: gaits repeat every stride, not every step."""
-        from .effects import breaks_symmetry
-
-        return breaks_symmetry(self.effects)
+        return any(EFFECTS[k].breaks_symmetry for k in self.active_effects)
 
     @property
     def total_mass(self) -> float:

@@ -120,7 +120,6 @@ import numpy as np
 import scipy.linalg
 from scipy.optimize import least_squares
 
-from .effects import EFFECTS
 from .equations import symbolic
 from .parameters import Params
 
@@ -793,7 +792,7 @@ def _reason(params: Params, ramp, level, stands: bool, stands_level: bool) -> st
             text += f" On level ground it could stand on {conf.kind}."
         else:
             text += " On level ground it could not."
-    active = sorted(k for k, v in params.effects.items() if v != EFFECTS[k].null)
+    active = sorted(params.active_effects)
     if active:
         text += f" The effects {', '.join(active)} are not part of this static check."
     return text

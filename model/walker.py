@@ -177,7 +177,7 @@ class Walker:
                 "planar=True needs a planar-symmetric walker (com_offset[1] = 0, inertia xy = yz = 0, "
                 "hip_width = 0, no cross_slope)"
             )
-        if not effects and any(v != EFFECTS[k].null for k, v in params.effects.items()):
+        if not effects and params.active_effects:
             raise ValueError("effects=False runs the seed's model: the parameter set has effects on")
         if period is None:
             period = 2 if params.breaks_symmetry else 1
@@ -192,10 +192,8 @@ class Walker:
         self.p = self._inputs[1]
         self.eng = engine(planar, effects, compiled)
         # Admissibility of the collision is checked where an effect changes the collision law.
-        self._check_impact = any(EFFECTS[k].enters == "collision law" and v != EFFECTS[k].null
-                                 for k, v in params.effects.items())
-        self._dissipative = any(k in CONTINUOUS and v != EFFECTS[k].null
-                                for k, v in params.effects.items())
+        self._check_impact = any(EFFECTS[k].enters == "collision law" for k in params.active_effects)
+        self._dissipative = any(k in CONTINUOUS for k in params.active_effects)
         self.lay = self.eng.lay
         self.dt = params.time_scale / steps_per_time_unit
         self.max_step_time = max_step_time * params.time_scale

@@ -16,7 +16,7 @@ from .hip import COULOMB_SMOOTHING, HipCoulomb, HipDamping, coulomb_torque
 from .impact import ImpactSpinArrest, ImpactTrailingShare
 
 __all__ = ["COULOMB_SMOOTHING", "CONTINUOUS", "EFFECTS", "Arrest", "Context", "Effect",
-           "breaks_symmetry", "coulomb_torque"]
+           "coulomb_torque"]
 
 _UNITS = (HipDamping(), HipCoulomb(), RollingResistance(), PivotFriction(), ImpactTrailingShare(),
           ImpactSpinArrest(), Asymmetry(), CrossSlope())
@@ -26,9 +26,3 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in _UNITS}
 
 #: Names of the effects that act between collisions, in the order of the dissipation output.
 CONTINUOUS: tuple[str, ...] = tuple(e.name for e in _UNITS if e.continuous)
-
-
-def breaks_symmetry(effects) -> bool:
-    """True when any symmetry-breaking effect in ``effects`` (name -> strength) is not at null."""
-    return any(EFFECTS[name].breaks_symmetry and value != EFFECTS[name].null
-               for name, value in effects.items())
