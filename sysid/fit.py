@@ -14,11 +14,22 @@ measured step durations (:mod:`toywalk.sysid.measurement`). Because the gait is 
 a forward simulation, the fit works for gaits too unstable to simulate (Biegler, *Nonlinear
 Programming*, SIAM 2010, ch. 10; the simultaneous approach of opty, Moore & van den Bogert 2018).
 
+Two models of the walk. **Periodic** (the default of :func:`fit`): every measured step is a step of
+one gait (a step, or a stride when the mirror symmetry is broken), the walk on its limit cycle.
+**Transient**: the recorded steps one after the other from a free start (``bvp(...,
+periodic=False)``: a heel-strike state with ``n_dyn - 1`` free directions), for a walk released off
+its cycle, still converging to it, or diverging from an unstable one. The periodic model is the
+transient one with the start on the fixed point, so the two nest; :func:`periodicity_test` compares
+them by the likelihood ratio (Wilks: ``chi2_periodic - chi2_transient`` is chi-square with ``n_dyn -
+1`` degrees of freedom when the walk is on its cycle) and says when the periodic fit is not
+appropriate.
+
 Uncertainty: the Gauss-Newton covariance ``(J^T J)^-1`` of the whitened residuals, with ``J`` the
-total derivative of the residuals in (theta, o) through the BVP (implicit-function theorem on
-``g``), cross-checked column by column against central differences that re-solve the BVP. When the
-trajectory file gives no standard deviations, each signal's is estimated from the residuals of a
-first fit and the fit is repeated (so the reduced chi-square is one by construction).
+total derivative of the residuals in (theta, o) (and the free start of a transient) through the
+BVP (implicit-function theorem on ``g``), cross-checked column by column against central
+differences that re-solve the BVP. When the trajectory file gives no standard deviations, each
+signal's is estimated from the residuals of a first fit and the fit is repeated (so the reduced
+chi-square is one by construction).
 """
 
 from __future__ import annotations
@@ -32,6 +43,7 @@ import casadi as ca
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
+from scipy.stats import chi2 as chi2_dist
 from toywalk.model.collocation import BVP, bvp, cycle_jacobian, initial_guess
 from toywalk.model.effects import EFFECTS
 from toywalk.model.gait import GaitNotFound, _lateral_singular, find_gait, solve_fixed_point
@@ -39,9 +51,18 @@ from toywalk.model.parameters import INPUT_NAMES, PARAMETER_NAMES, ParameterErro
 from toywalk.model.trajectory import SIGNALS, TrajectoryTable
 from toywalk.model.walker import STATE_NAMES, Walker, is_planar_symmetric
 
-from .measurement import OFFSETS, MeasurementError, Observations, observations, operator
+from .measurement import OFFSETS, MeasurementError, Observations, first_side, observations, operator
 
-__all__ = ["FitError", "FitResult", "fit", "gait_period", "parameter_bounds"]
+__all__ = ["MODELS", "FitError", "FitResult", "PeriodicityTest", "fit", "gait_period", "parameter_bounds",
+           "periodicity_test"]
+
+#: The models of a walk :func:`fit` knows.
+MODELS = ("periodic", "transient")
+#: Default collocation mesh (intervals per step, degree) of each model (:func:`fit`).
+_MESH = {"periodic": (30, 4), "transient": (12, 3)}
+#: The periodicity test's false-alarm rate: the periodic model is rejected when the likelihood
+#: ratio's p-value is below it.
+PERIODICITY_ALPHA = 0.01
 
 #: Noise SD (rad) assumed for the first pass when the file gives none; the second pass uses the
 #: per-signal RMS of the first pass's residuals.
@@ -99,6 +120,11 @@ class FitResult:
     jacobian_check : dict
         Largest relative difference between the AD and the finite-difference residual Jacobian
         per free parameter.
+    model : str
+        'periodic' or 'transient' (:data:`MODELS`).
+    initial_state : dict
+        Transient model: the fitted state just after the first measured heel strike (public names,
+        physical description, its stance leg ``stance``); empty for the periodic model.
     """
 
     free: list
@@ -122,18 +148,23 @@ class FitResult:
     jacobian_check: dict
     priors: dict = dataclasses.field(default_factory=dict)
     solution: np.ndarray = dataclasses.field(repr=False, default=None)
+    model: str = "periodic"
+    initial_state: dict = dataclasses.field(default_factory=dict)
+    sigma: np.ndarray = dataclasses.field(repr=False, default=None)
+    start_dof: int = 0
 
     def to_json(self) -> dict:
         """JSON-ready dictionary (pipeline.md's fit file: estimates, std, covariance, ...)."""
         return {
             "status": self.status, "success": self.success, "iterations": self.iterations,
-            "free": self.free, "estimates": self.estimates, "std": self.std,
+            "model": self.model, "initial_state": self.initial_state, "free": self.free,
+            "estimates": self.estimates, "std": self.std,
             "names": self.names, "covariance": self.covariance.tolist(),
             "correlation": self.correlation.tolist(),
             "noise_sd": self.noise_sd, "noise_source": self.noise_source,
             "residual_rms": self.residual_rms, "residual_rms_by_phase": self.residual_rms_by_phase,
             "chi2": self.chi2, "n_residuals": self.n_residuals,
-            "reduced_chi2": self.chi2 / max(self.n_residuals - len(self.names), 1),
+            "reduced_chi2": self.chi2 / max(self.n_residuals - len(self.names) - self.start_dof, 1),
             "gait": self.gait, "warnings": self.warnings, "jacobian_check": self.jacobian_check,
             "priors": {n: list(v) for n, v in self.priors.items()},
             "params": self.params.to_dict(),
@@ -237,9 +268,10 @@ def _sparse(m: ca.DM) -> sp.csc_matrix:
 
 
 # ------------------------------------------------------------------------------------ fit
-def fit(table: TrajectoryTable, params: Params, free, *, offsets: bool = True,
-        n_intervals: int = 30, degree: int = 4, z_guess=None, max_iter: int = 500,
-        check_jacobian: bool = True, priors: dict | None = None) -> FitResult:
+def fit(table: TrajectoryTable, params: Params, free, *, model: str = "periodic",
+        offsets: bool = True, n_intervals: int | None = None, degree: int | None = None, z_guess=None,
+        max_iter: int = 500, check_jacobian: bool = True, priors: dict | None = None,
+        noise_sd: dict | None = None) -> FitResult:
     """Fit ``free`` parameters of ``params`` to the measured walk ``table``.
 
     Parameters
@@ -251,10 +283,16 @@ def fit(table: TrajectoryTable, params: Params, free, *, offsets: bool = True,
         The walker: the starting point, and the values of everything not free.
     free : sequence of str
         Names to fit (``foot_radius``, ``com_offset[1]``, ``effects.impact_trailing_share``).
+    model : {'periodic', 'transient'}
+        The walk on its limit cycle, or the recorded steps from a free start (module docstring;
+        :func:`periodicity_test` says which the data need).
     offsets : bool
         Fit the ramp-frame offsets of lean, steer and pitch (nuisance parameters).
-    n_intervals, degree : int
-        Collocation mesh per step.
+    n_intervals, degree : int, optional
+        Collocation mesh per step; by default (30, 4) for the periodic model (one step: the
+        gait to 1e-11) and (12, 3) for the transient one (every recorded step is a mesh: its
+        angles agree with an RK8 simulation to 4e-6 rad on stable-toy, 0.2 % of the tracker's
+        noise, at a third of the cost).
     z_guess : ndarray, shape (8,), optional
         A start near the gait (default: :func:`toywalk.model.gait.find_gait`).
     max_iter : int
@@ -265,6 +303,9 @@ def fit(table: TrajectoryTable, params: Params, free, *, offsets: bool = True,
     priors : dict of str to (float, float), optional
         Gaussian priors ``name -> (mean, sd)`` on free parameters, such as the slope as measured
         with its error; each adds the residual ``(theta - mean) / sd``.
+    noise_sd : dict of str to float, optional
+        Noise SD per signal (rad), used instead of the file's ``*_sd`` columns or an estimate from
+        the residuals (one pass).
 
     Raises
     ------
@@ -274,6 +315,8 @@ def fit(table: TrajectoryTable, params: Params, free, *, offsets: bool = True,
     if not isinstance(params, Params):
         raise TypeError(f"params must be a Params, got {type(params).__name__}")
     free = _check_free(params, free)
+    if model not in MODELS:
+        raise FitError(f"model must be one of {', '.join(MODELS)}, got {model!r}")
     try:
         obs = observations(table)
     except MeasurementError as err:
@@ -281,34 +324,56 @@ def fit(table: TrajectoryTable, params: Params, free, *, offsets: bool = True,
     period = gait_period(params, free)
     walker, gait = _start(params, period, free, z_guess)
     planar = walker.planar
-    prob = bvp(planar, n_intervals, degree, period)
+    side = first_side(obs)
+    n_intervals = n_intervals or _MESH[model][0]
+    degree = degree or _MESH[model][1]
+    if model == "periodic":
+        prob = bvp(planar, n_intervals, degree, period)
+        side, z_first = 1, gait.fixed_point
+    else:
+        prob = bvp(planar, n_intervals, degree, obs.n_steps, periodic=False)
+        # A stride's fixed point starts with the left leg in stance; a walk that starts on the
+        # right starts one step later.
+        z_first = gait.fixed_point if side == 1 or period == 1 else \
+            walker.step(gait.fixed_point, side=1).z_plus
     a_op, b_op, model_step = operator(obs, prob, planar)
     if not offsets:
         b_op = np.zeros_like(b_op)
-    w0 = _feasible_start(prob, walker, gait.fixed_point)
+    w0 = _feasible_start(prob, walker, z_first, side)
     priors = _check_priors(priors or {}, free)
-    problem = _Problem(prob, planar, params, free, obs, a_op, b_op, model_step, offsets, max_iter,
-                       check_jacobian, priors)
-    sd_known = obs.sd_known
-    sigma = obs.sd.copy() if sd_known else np.full(len(obs.value), _FIRST_PASS_SD)
+    problem = _Problem(prob, walker, free, obs, a_op, b_op, model_step, offsets, max_iter,
+                       check_jacobian, priors, side)
+    sigma, source, passes = obs.sd.copy(), "file", 1
+    if noise_sd is not None:
+        sigma, source = _sigma_from(noise_sd, obs), "given"
+    elif not obs.sd_known:
+        sigma, source, passes = np.full(len(obs.value), _FIRST_PASS_SD), "estimated from residuals", 2
     x0 = np.concatenate([w0, np.zeros(len(free)), np.zeros(len(OFFSETS))])
-    passes = 1 if sd_known else 2
-    for _ in range(passes):
+    for k in range(passes):
         sol, stats = problem.solve(x0, sigma)
         x0 = sol
-        if not sd_known:
-            res = problem.angle_residuals(sol)
-            for s_i in range(len(SIGNALS)):
-                sel = obs.signal == s_i
-                if np.any(sel):
-                    sigma[sel] = max(float(np.sqrt(np.mean(res[sel] ** 2))), 1e-9)
-    return problem.result(sol, stats, sigma, "file" if sd_known else "estimated from residuals")
+        if k < passes - 1 or source == "estimated from residuals":
+            sigma = _sigma_from(problem.residual_rms(sol), obs)
+    return problem.result(sol, stats, sigma, source)
 
 
-def _feasible_start(prob: BVP, walker: Walker, z0: np.ndarray) -> np.ndarray:
-    """BVP unknowns of the starting gait (a simulated period, polished by the BVP solver)."""
-    w = initial_guess(walker, z0, prob)
-    sol = prob.solver(x0=w, p=walker.params.input_vector(), lbg=prob.lbg, ubg=prob.ubg)
+def _sigma_from(noise_sd: dict, obs: Observations) -> np.ndarray:
+    """Per-observation SDs from one SD per signal."""
+    sigma = np.empty(len(obs.value))
+    for s_i, name in enumerate(SIGNALS):
+        sel = obs.signal == s_i
+        if np.any(sel):
+            value = noise_sd.get(name) if isinstance(noise_sd, dict) else None
+            if value is None or not (math.isfinite(value) and value > 0):
+                raise FitError(f"noise_sd needs a positive SD for {name}, got {value!r}")
+            sigma[sel] = max(float(value), 1e-9)
+    return sigma
+
+
+def _feasible_start(prob: BVP, walker: Walker, z0: np.ndarray, side: int) -> np.ndarray:
+    """BVP unknowns of the starting gait (simulated steps, polished by the BVP solver)."""
+    w = initial_guess(walker, z0, prob, side)
+    sol = prob.solver(x0=w, p=walker.params.input_vector(side), lbg=prob.lbg, ubg=prob.ubg)
     if not prob.solver.stats()["success"]:
         raise FitError(f"the starting gait does not solve the BVP ({prob.solver.stats()['return_status']})")
     return np.array(sol["x"]).ravel()
@@ -317,9 +382,15 @@ def _feasible_start(prob: BVP, walker: Walker, z0: np.ndarray) -> np.ndarray:
 class _Problem:
     """The fit's NLP, built once per call of :func:`fit`."""
 
-    def __init__(self, prob: BVP, planar: bool, params: Params, free, obs: Observations, a_op, b_op,
-                 model_step, offsets: bool, max_iter: int, check_jacobian: bool, priors: dict):
-        self.prob, self.planar, self.params, self.free, self.obs = prob, planar, params, free, obs
+    def __init__(self, prob: BVP, walker: Walker, free, obs: Observations, a_op, b_op, model_step,
+                 offsets: bool, max_iter: int, check_jacobian: bool, priors: dict, side: int):
+        params = walker.params
+        self.prob, self.planar, self.params, self.free, self.obs = prob, walker.planar, params, free, obs
+        self.walker, self.side = walker, side
+        # A transient's start: the first step's state, all but one component independent (the
+        # one the start condition h(x_0) = 0 fixes, chosen where it is best conditioned).
+        self.start_cols = np.arange(prob.state_index(0, 0, 0), prob.state_index(0, 0, 0) + prob.n_dyn)
+        self.start_free = np.zeros(0, dtype=int)
         self.check_jacobian, self.priors = check_jacobian, priors
         # Prior rows: (theta_j - mean) / sd for each free parameter with a prior.
         self.prior_index = [free.index(n) for n in priors]
@@ -332,7 +403,7 @@ class _Problem:
         self.n_w = n_w
         self.theta0 = np.array([params.get(n) for n in free])
         self.scale = np.array([_scale(params, n) for n in free])
-        self.p0 = params.input_vector()
+        self.p0 = params.input_vector(side)
         self.index = [INPUT_NAMES.index(n) for n in free]
         x = ca.MX.sym("x", n_w + n_f + n_o)
         w, delta, off = x[:n_w], x[n_w:n_w + n_f], x[n_w + n_f:]
@@ -401,21 +472,45 @@ class _Problem:
         w, off = x[:self.n_w], x[self.n_w + len(self.free):]
         return self.a_op @ w + self.b_op @ off - self.obs.value
 
+    def residual_rms(self, x: np.ndarray) -> dict:
+        """RMS of the angle residuals per signal (rad)."""
+        res = self.angle_residuals(x)
+        return {name: float(np.sqrt(np.mean(res[self.obs.signal == s_i] ** 2)))
+                for s_i, name in enumerate(SIGNALS) if np.any(self.obs.signal == s_i)}
+
+    def start_names(self) -> list[str]:
+        """Names of a transient's free start components (``start.`` and the public state name)."""
+        public = self.walker.to_internal(np.arange(8.0)).astype(int)[:self.prob.n_dyn]
+        return [f"start.{STATE_NAMES[public[i - self.start_cols[0]]]}" for i in self.start_free]
+
     def whitened(self, x: np.ndarray, sigma: np.ndarray) -> np.ndarray:
         return np.array(self.residuals_fn(x, 1.0 / sigma)).ravel()
 
     # ----------------------------------------------------------------------------- result
     def jacobian(self, x: np.ndarray, sigma: np.ndarray) -> np.ndarray:
-        """Total derivative of the whitened residuals in (theta, offsets) through the BVP."""
+        """Total derivative of the whitened residuals in (theta, the free start of a transient,
+        offsets) through the BVP: columns ``free``, :meth:`start_names`, :data:`OFFSETS`."""
         prob, obs = self.prob, self.obs
         w = x[:self.n_w]
         g_w, g_p = (_sparse(m) for m in _equality_jacobians(prob)(w, self.p_full(self.theta(x))))
-        g_theta = g_p[:, self.index].toarray()
-        dw = -splu(g_w.tocsc()).solve(g_theta) if self.free else np.zeros((self.n_w, 0))
+        g_w = g_w.tocsc()
+        indep = np.zeros((g_w.shape[0], 0))
+        if not prob.periodic:
+            start_row = g_w[prob.start_guard_index][:, self.start_cols].toarray().ravel()
+            fixed = self.start_cols[int(np.argmax(np.abs(start_row)))]
+            self.start_free = self.start_cols[self.start_cols != fixed]
+            indep = g_w[:, self.start_free].toarray()
+        dep = np.setdiff1d(np.arange(self.n_w), self.start_free)
+        n_f, n_s = len(self.free), len(self.start_free)
+        rhs = np.hstack([g_p[:, self.index].toarray(), indep])
+        dw = np.zeros((self.n_w, n_f + n_s))
+        if n_f + n_s:
+            dw[dep] = -splu(g_w[:, dep].tocsc()).solve(rhs)
+        dw[self.start_free, n_f:] = np.eye(n_s)
         rows_ang = (self.a_op @ dw) / sigma[:, None]
         rows_dur = np.array([dw[prob.duration_index(int(j))] for j in self.model_step])
-        rows_dur = rows_dur.reshape(len(self.model_step), len(self.free)) / obs.duration_sd[:, None]
-        rows_prior = np.zeros((len(self.prior_index), len(self.free)))
+        rows_dur = rows_dur.reshape(len(self.model_step), n_f + n_s) / obs.duration_sd[:, None]
+        rows_prior = np.zeros((len(self.prior_index), n_f + n_s))
         rows_prior[np.arange(len(self.prior_index)), self.prior_index] = 1.0 / self.prior_sd
         j_theta = np.vstack([rows_ang, rows_dur, rows_prior])
         j_off = np.vstack([self.b_op / sigma[:, None],
@@ -425,9 +520,12 @@ class _Problem:
         return np.hstack([j_theta, j_off])
 
     def fd_check(self, x: np.ndarray, sigma: np.ndarray, jac: np.ndarray) -> dict:
-        """Central differences of the residuals in each free parameter, re-solving the BVP."""
+        """Central differences of the residuals in each free parameter, re-solving the BVP (with a
+        transient's free start held)."""
         out = {}
         theta = self.theta(x)
+        lbx, ubx = np.full(self.n_w, -np.inf), np.full(self.n_w, np.inf)
+        lbx[self.start_free] = ubx[self.start_free] = x[self.start_free]
         for j, name in enumerate(self.free):
             h = 1e-5 * self.scale[j]
             cols = []
@@ -435,7 +533,7 @@ class _Problem:
                 th = theta.copy()
                 th[j] += sign * h
                 sol = self.prob.solver(x0=x[:self.n_w], p=self.p_full(th), lbg=self.prob.lbg,
-                                       ubg=self.prob.ubg)
+                                       ubg=self.prob.ubg, lbx=lbx, ubx=ubx)
                 if not self.prob.solver.stats()["success"]:
                     break
                 xs = x.copy()
@@ -459,18 +557,22 @@ class _Problem:
             estimates.update(zip(OFFSETS, map(float, off), strict=True))
         notes: list[str] = []
         jac = self.jacobian(x, sigma)
+        # The information over every unknown the data see (the free start of a transient too);
+        # the reported covariance is its inverse's block of the free parameters and offsets.
+        names_all = list(self.free) + self.start_names() + names[len(self.free):]
+        keep = [names_all.index(n) for n in names]
         info = jac.T @ jac
         norms = np.sqrt(np.maximum(np.diag(info), 1e-300))
         scaled = info / np.outer(norms, norms)
         evals, evecs = np.linalg.eigh(scaled)
         if len(evals) and evals[0] < _NEAR_SINGULAR * evals[-1]:
             vec = evecs[:, 0]
-            combo = " ".join(f"{v:+.2f} {n}" for v, n in zip(vec, names, strict=True) if abs(v) > 0.1)
+            combo = " ".join(f"{v:+.2f} {n}" for v, n in zip(vec, names_all, strict=True) if abs(v) > 0.1)
             notes.append(f"not determined by these data: the combination {combo} (scaled) has "
                          f"{math.sqrt(max(evals[0], 0) / evals[-1]):.1e} of the largest singular value")
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
-            cov = np.linalg.pinv(info)
+            cov = np.linalg.pinv(info)[np.ix_(keep, keep)]
         std_all = np.sqrt(np.maximum(np.diag(cov), 0.0))
         corr = cov / np.outer(np.maximum(std_all, 1e-300), np.maximum(std_all, 1e-300))
         std = dict(zip(names, map(float, std_all), strict=True))
@@ -505,22 +607,43 @@ class _Problem:
         success = bool(stats["success"])
         try:
             fitted = self.params.replace(**estimates_only(estimates, self.free))
-            gait = self._gait(x, fitted)
+            gait = self._gait(x, fitted, notes)
         except ParameterError as err:
             fitted, gait, success = self.params, {}, False
             notes.append(f"the estimates are not a valid walker: {err}")
+        start = {}
+        if not prob.periodic:
+            z = self.walker.to_public(np.r_[x[self.start_cols], np.zeros(self.walker.lay.nx - prob.n_dyn)])
+            z[:4] *= self.side  # the physical description: lean and steer of a right stance flip
+            start = dict(zip(STATE_NAMES, map(float, z), strict=True))
+            start["stance"] = "L" if self.side == 1 else "R"
         return FitResult(
             free=list(self.free), estimates=estimates, std=std, covariance=cov, correlation=corr,
             names=names, noise_sd=noise, noise_source=noise_source, residual_rms=rms,
             residual_rms_by_phase=by_phase, chi2=float(whitened @ whitened),
             n_residuals=len(whitened), success=success, status=str(stats["return_status"]),
             iterations=int(stats["iter_count"]), params=fitted, gait=gait, warnings=notes,
-            jacobian_check=check, priors=self.priors, solution=x)
+            jacobian_check=check, priors=self.priors, solution=x,
+            model="periodic" if prob.periodic else "transient", initial_state=start, sigma=sigma,
+            start_dof=len(self.start_free))
 
-    def _gait(self, x: np.ndarray, fitted: Params) -> dict:
+    def _gait(self, x: np.ndarray, fitted: Params, notes: list) -> dict:
+        """The fitted walker's gait: the periodic fit's own, or for a transient the fitted
+        walker's gait found as for a periodic fit's start (its mesh)."""
         prob = self.prob
-        walker = Walker(fitted, planar=self.planar, period=prob.phases)
+        period = gait_period(fitted, self.free)
+        walker = Walker(fitted, planar=self.planar, period=period)
         w = x[:self.n_w]
+        if not prob.periodic:
+            # Not from the walk's last steps: a periodic BVP started there can land on another
+            # gait (measured: a 0.055 s step beside the 0.107 s one on stable-toy).
+            try:
+                walker, gait = _start(fitted, period, self.free, None)
+                prob = bvp(self.planar, *_MESH["periodic"], period)
+                w = _feasible_start(prob, walker, gait.fixed_point, 1)
+            except FitError as err:
+                notes.append(f"no periodic gait of the fitted walker: {err}")
+                return {}
         jac = cycle_jacobian(w, fitted.input_vector(), prob, walker)
         vals = np.linalg.eigvals(jac)
         vals = vals[np.argsort(-np.abs(vals))]
@@ -535,6 +658,100 @@ class _Problem:
             "stable": bool(np.max(np.abs(vals)) < 1.0),
             "planar": self.planar,
         }
+
+
+@dataclasses.dataclass
+class PeriodicityTest:
+    """Is the walk on the model's limit cycle? The periodic fit against the transient one.
+
+    Attributes
+    ----------
+    periodic, transient : FitResult
+        Both fits, with one noise model (the file's SDs, or the transient fit's residual RMS: it
+        holds whichever model is true).
+    delta_chi2 : float
+        ``chi2_periodic - chi2_transient`` (>= 0: the models nest).
+    dof : int
+        Free directions of the transient's start (``n_dyn - 1``).
+    p_value : float
+        Chi-square tail probability of ``delta_chi2`` on ``dof`` (Wilks' theorem).
+    alpha : float
+        The false-alarm rate: the periodic model is rejected when ``p_value < alpha``.
+    appropriate : bool or None
+        The periodic model explains the walk (None: the test could not be made).
+    message : str
+    """
+
+    periodic: FitResult
+    transient: FitResult
+    delta_chi2: float
+    dof: int
+    p_value: float
+    alpha: float
+    appropriate: bool | None
+    message: str
+
+    @property
+    def chosen(self) -> FitResult:
+        """The fit to use: the periodic one unless it is rejected."""
+        return self.transient if self.appropriate is False else self.periodic
+
+    def to_json(self) -> dict:
+        return {"delta_chi2": self.delta_chi2, "dof": self.dof, "p_value": self.p_value,
+                "alpha": self.alpha, "periodic_appropriate": self.appropriate,
+                "message": self.message, "chosen": self.chosen.model,
+                "chi2": {"periodic": self.periodic.chi2, "transient": self.transient.chi2}}
+
+
+def periodicity_test(table: TrajectoryTable, params: Params, free, *,
+                     alpha: float = PERIODICITY_ALPHA, **options) -> PeriodicityTest:
+    """Fit the walk with both models and say whether the periodic one is appropriate.
+
+    A walk released off its cycle (or leaving an unstable one) is not a repeated gait: fitting it
+    as one biases the parameters. The transient model nests the periodic one (its start on the
+    fixed point), so the likelihood ratio ``chi2_periodic - chi2_transient`` is, for a walk on its
+    cycle, chi-square distributed with as many degrees of freedom as the start has free
+    directions (Wilks 1938, Ann. Math. Stat. 9:60); ``alpha`` is the test's false-alarm rate.
+    It assumes independent measurement errors: errors correlated in time (a smoothed track)
+    raise the false-alarm rate.
+
+    Parameters
+    ----------
+    table, params, free
+        As :func:`fit`.
+    alpha : float
+        False-alarm rate, in (0, 1).
+    **options
+        Passed to both fits (``offsets``, ``priors``, ``check_jacobian``, ...; not ``model``).
+    """
+    if not 0 < alpha < 1:
+        raise FitError(f"alpha must be in (0, 1), got {alpha!r}")
+    if "model" in options:
+        raise FitError("periodicity_test fits both models: do not pass model")
+    periodic = fit(table, params, free, model="periodic", **options)
+    transient = fit(table, periodic.params if periodic.success else params, free,
+                    model="transient", **options)
+    if transient.noise_source == "estimated from residuals":
+        # One noise model for both, the transient's: the periodic fit again with its SDs.
+        given = {k: v for k, v in options.items() if k != "noise_sd"}
+        periodic = fit(table, periodic.params if periodic.success else params, free,
+                       model="periodic", noise_sd=transient.noise_sd, **given)
+    dof = transient.start_dof
+    delta = max(periodic.chi2 - transient.chi2, 0.0)
+    p_value = float(chi2_dist.sf(delta, dof))
+    if not (periodic.success and transient.success):
+        failed = [f"{r.model} ({r.status})" for r in (periodic, transient) if not r.success]
+        return PeriodicityTest(periodic, transient, delta, dof, p_value, alpha, None,
+                               f"no test: the {' and the '.join(failed)} fit did not converge")
+    appropriate = p_value >= alpha
+    if appropriate:
+        message = (f"the walk is consistent with the model's limit cycle: a free start lowers "
+                   f"chi-square by {delta:.3g} on {dof} degrees of freedom (p = {p_value:.3g})")
+    else:
+        message = (f"the walk is not on the model's limit cycle: a free start lowers chi-square by "
+                   f"{delta:.4g} on {dof} degrees of freedom (p = {p_value:.2g} < {alpha:g}); the "
+                   "periodic fit is not appropriate, use the transient one")
+    return PeriodicityTest(periodic, transient, delta, dof, p_value, alpha, appropriate, message)
 
 
 def estimates_only(estimates: dict, free) -> dict:

@@ -1,4 +1,4 @@
-"""The measurement model: what a periodic model gait predicts for each measured sample.
+"""The measurement model: what a model gait or walk predicts for each measured sample.
 
 A measured walk (a trajectory file, pipeline.md) is cut into steps at its heel strikes. Within a
 step, a sample's **phase** is ``(t - t_strike) / (t_next_strike - t_strike)`` in [0, 1): the model
@@ -10,7 +10,9 @@ The model describes a step in the mirrored description of model.md section 4 (th
 the left one). A step with the physical right leg in stance is mirrored back: lean and steer
 change sign. The stance leg's pitch is ``theta_st`` and the swing leg's ``theta_sw``. A
 step-periodic gait (one model step) serves every measured step; a stride-periodic one (effects that
-break the mirror symmetry) has two model steps, the first with the left leg in stance.
+break the mirror symmetry) has two model steps, the first with the left leg in stance. A transient
+model (a walk from a free start, the recorded steps one after the other: ``bvp(...,
+periodic=False)``) has one model step per measured step.
 
 Model values at a phase come from the collocation polynomials of the gait BVP
 (:class:`toywalk.model.collocation.BVP`): each is a fixed linear combination of the BVP's
@@ -32,8 +34,8 @@ import scipy.sparse as sp
 from toywalk.model.collocation import BVP
 from toywalk.model.trajectory import SIGNALS, TrajectoryTable
 
-__all__ = ["OFFSETS", "MeasurementError", "Observations", "components", "model_steps", "observations",
-           "offsets_design", "operator"]
+__all__ = ["OFFSETS", "MeasurementError", "Observations", "components", "first_side", "model_steps",
+           "observations", "offsets_design", "operator"]
 
 #: Nuisance offsets (rad), one per group of signals: lean, steer, and both pitches.
 OFFSETS = ("lean_offset", "steer_offset", "pitch_offset")
@@ -161,15 +163,24 @@ def _lagrange(points: np.ndarray, s: float) -> np.ndarray:
     return out
 
 
-def model_steps(obs: Observations, phases: int) -> np.ndarray:
+def model_steps(obs: Observations, phases: int, periodic: bool = True) -> np.ndarray:
     """The model step (phase of the period) each measured step is compared with, shape (n_steps,):
     always 0 for a step-periodic gait; 0 for the left leg's steps and 1 for the right leg's in a
-    stride-periodic one."""
+    stride-periodic one; the measured step's own index in a transient model."""
+    if not periodic:
+        if phases != obs.n_steps:
+            raise MeasurementError(f"a transient model of {phases} steps for a walk of {obs.n_steps}")
+        return np.arange(obs.n_steps)
     return np.zeros(obs.n_steps, dtype=int) if phases == 1 else np.where(obs.stance == "L", 0, 1)
 
 
-def components(obs: Observations, phases: int, planar: bool) -> tuple[np.ndarray, np.ndarray,
-                                                                       np.ndarray]:
+def first_side(obs: Observations) -> int:
+    """The side input of the first measured step: +1 with the left leg in stance, -1 the right."""
+    return 1 if obs.stance[0] == "L" else -1
+
+
+def components(obs: Observations, phases: int, planar: bool,
+               periodic: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Which model quantity each observation measures.
 
     Returns ``(model_step, component, sign)``, each shape (n_obs,): the model step (phase of the
@@ -178,7 +189,7 @@ def components(obs: Observations, phases: int, planar: bool) -> tuple[np.ndarray
     for lean and steer in the planar reduction) and its sign (-1 for the lean and steer of a step
     with the right leg in stance, mirrored back).
     """
-    step_of = model_steps(obs, phases)
+    step_of = model_steps(obs, phases, periodic)
     side = np.where(obs.stance == "L", 1.0, -1.0)
     comp = {"steer": 0, "lean": 1, "st": 2, "sw": 3} if not planar else {"st": 0, "sw": 1}
     n_obs = len(obs.value)
@@ -212,7 +223,7 @@ def operator(obs: Observations, prob: BVP, planar: bool) -> tuple[sp.csr_matrix,
     model step (phase of the period) each measured step is compared with.
     """
     points = np.r_[0.0, prob.tau]
-    model_step, component, sign = components(obs, prob.phases, planar)
+    model_step, component, sign = components(obs, prob.phases, planar, prob.periodic)
     rows, cols, vals = [], [], []
     for i in np.flatnonzero(component >= 0):
         scaled = obs.phase[i] * prob.n_int
@@ -223,4 +234,4 @@ def operator(obs: Observations, prob: BVP, planar: bool) -> tuple[sp.csr_matrix,
             cols.append(prob.state_index(model_step[i], m, r) + component[i])
             vals.append(sign[i] * weights[r])
     a = sp.csr_matrix((vals, (rows, cols)), shape=(len(obs.value), prob.phases * prob.phase_size))
-    return a, offsets_design(obs), model_steps(obs, prob.phases)
+    return a, offsets_design(obs), model_steps(obs, prob.phases, prob.periodic)

@@ -65,13 +65,19 @@ def posterior_from_fit(report: dict, table: TrajectoryTable) -> tuple[LogPosteri
                                                                      np.ndarray]:
     """The log-posterior of a fit file's free parameters, their estimates and covariance.
 
-    Noise SDs: the file's ``*_sd`` columns where the fit used them, else the fit's estimates.
+    Noise SDs: the file's ``*_sd`` columns where the fit used them, else the fit's estimates (or
+    the SDs it was given). The likelihood follows the periodic gait by shooting: a fit of the
+    transient model is refused.
     """
     try:
         if not report["success"] or not report["gait"]:
             notes = "; ".join(report.get("warnings", [])) or "no gait at the estimates"
             raise SampleError(f"the fit did not succeed ({report['status']}: {notes}): sample from "
                               "a fit that did")
+        if report.get("model", "periodic") != "periodic":
+            raise SampleError("the fit is of the transient model (the walk is not on its limit "
+                              "cycle): the posterior is sampled for the periodic model only; fit "
+                              "with --model periodic to sample it")
         params = Params.from_dict(report["params"])
         free = list(report["free"])
         estimates = np.array([report["estimates"][n] for n in free], dtype=float)

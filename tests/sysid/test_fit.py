@@ -21,11 +21,12 @@ from toywalk.sysid.measurement import MeasurementError, observations, operator
 from ..conftest import DATA
 
 
-def _walk(params, steps, noise, seed, gait=None, steps_per_time_unit=16):
-    """A simulated walk from the gait, as a measured trajectory (angles with noise, heel strikes
-    including the one the walk starts from), like `toywalk simulate --noise`."""
+def _walk(params, steps, noise, seed, gait=None, steps_per_time_unit=16, z0=None):
+    """A simulated walk from the gait (or from ``z0``), as a measured trajectory (angles with
+    noise, heel strikes including the one the walk starts from), like `toywalk simulate --noise`."""
     gait = gait or find_gait(params)
-    traj = simulate(params, gait.fixed_point, steps, steps_per_time_unit=steps_per_time_unit)
+    z0 = gait.fixed_point if z0 is None else z0
+    traj = simulate(params, z0, steps, steps_per_time_unit=steps_per_time_unit)
     rng = np.random.default_rng(seed)
     left, right = traj.pitches()
     signals = {"lean": traj.lean, "steer": traj.steer, "pitch_left": left, "pitch_right": right}

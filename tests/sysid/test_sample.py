@@ -36,7 +36,7 @@ def fitted(tmp_path_factory):
     assert _run("simulate", "--params", params, "--steps", "10", "--noise", "0.002", "--seed", "3",
                 "--out", walk)[0] == 0
     assert _run("fit", walk, "--params", params, "--free", "foot_radius,com_offset[1]",
-                "--out", fit)[0] == 0
+                "--model", "periodic", "--out", fit)[0] == 0
     return folder, walk, fit
 
 
