@@ -28,14 +28,11 @@ def _chains(path: Path, ensembles: int):
 
 
 def _save(fig, path: Path) -> None:
-    import matplotlib.pyplot as plt
-
     tmp = path.with_name(f".{path.name}.tmp.png")
     try:
         fig.savefig(tmp, dpi=110)
         os.replace(tmp, path)
     finally:
-        plt.close(fig)
         tmp.unlink(missing_ok=True)
 
 
@@ -63,11 +60,10 @@ def write_report(chain: Path, summary: dict, folder: Path, post=None) -> list[Pa
     """Write trace.png, corner.png, eigenvalues.png, report.md and report.json into ``folder``;
     with the log-posterior ``post``, also predictive.png (posterior predictive bands over the
     measured signals)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
+    # Figures built on matplotlib's object API, never pyplot: the caller's backend (a notebook's
+    # inline one) is left as it is.
     import corner
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
 
     folder.mkdir(parents=True, exist_ok=True)
     names = summary["names"]
@@ -75,8 +71,8 @@ def write_report(chain: Path, summary: dict, folder: Path, post=None) -> list[Pa
     burn, thin = summary["burn_in"], summary["thin"]
     written = []
 
-    fig, axes = plt.subplots(len(names), 1, figsize=(7, 1.8 * len(names) + 0.6), sharex=True,
-                             squeeze=False)
+    fig = Figure(figsize=(7, 1.8 * len(names) + 0.6))
+    axes = fig.subplots(len(names), 1, sharex=True, squeeze=False)
     for i, name in enumerate(names):
         ax = axes[i, 0]
         for e, (c, _) in enumerate(runs):
@@ -89,8 +85,10 @@ def write_report(chain: Path, summary: dict, folder: Path, post=None) -> list[Pa
     written.append(folder / "trace.png")
 
     draws = np.concatenate([c[burn::thin].reshape(-1, len(names)) for c, _ in runs])
-    fig = corner.corner(draws, labels=names, quantiles=[0.05, 0.5, 0.95], show_titles=True,
-                        title_fmt=".3g", title_kwargs={"fontsize": 8}, label_kwargs={"fontsize": 8})
+    size = 2.0 * len(names) + 0.8
+    fig = corner.corner(draws, fig=Figure(figsize=(size, size)), labels=names,
+                        quantiles=[0.05, 0.5, 0.95], show_titles=True, title_fmt=".3g",
+                        title_kwargs={"fontsize": 8}, label_kwargs={"fontsize": 8})
     _save(fig, folder / "corner.png")
     written.append(folder / "corner.png")
 
@@ -99,7 +97,8 @@ def write_report(chain: Path, summary: dict, folder: Path, post=None) -> list[Pa
 
         low, high = _predictive(post, draws, np.random.default_rng(0))
         obs = post.obs
-        fig, axes = plt.subplots(len(SIGNALS), 1, figsize=(8, 8), sharex=True)
+        fig = Figure(figsize=(8, 8))
+        axes = fig.subplots(len(SIGNALS), 1, sharex=True)
         for s_i, (ax, name) in enumerate(zip(axes, SIGNALS, strict=True)):
             sel = np.flatnonzero(obs.signal == s_i)
             order = sel[np.argsort(obs.time[sel])]
@@ -116,7 +115,8 @@ def write_report(chain: Path, summary: dict, folder: Path, post=None) -> list[Pa
 
     eig = np.concatenate([b["max_abs_eigenvalue"][burn::thin].ravel() for _, b in runs])
     eig = eig[np.isfinite(eig)]
-    fig, ax = plt.subplots(figsize=(6, 3.2))
+    fig = Figure(figsize=(6, 3.2))
+    ax = fig.subplots()
     if len(eig):
         ax.hist(eig, bins=40, color="0.5")
     ax.axvline(1.0, color="r", lw=1)
