@@ -4,6 +4,10 @@ By default (``--model auto``) the walk is fitted both as a repeated gait and as 
 free start, and the periodicity test (:func:`toywalk.sysid.fit.periodicity_test`) chooses: a walk
 released off its cycle fitted as a gait gives biased parameters. ``--model periodic`` or
 ``transient`` fits one model only.
+
+``--multistart`` fits from the user's parameters and from one start per shipped parameter set
+(:func:`toywalk.sysid.multistart.multi_start`), writes the best fit with a ``multistart`` block
+(every run and the distinct optima), and says whether the starts agree.
 """
 
 from __future__ import annotations
@@ -25,11 +29,23 @@ def register(subparsers) -> None:
     p.add_argument("--model", choices=("auto", "periodic", "transient"), default="auto",
                    help="the walk as a repeated gait, as a transient from a free start, or both "
                         "with the periodicity test choosing (default)")
+    p.add_argument("--strikes", choices=("model", "measured"), default="model",
+                   help="read the samples between the model's heel strikes, the measured ones "
+                        "being data with their time_sd (default), or between the measured "
+                        "strikes taken as exact (robust to step-to-step variability, biased by "
+                        "strike-time errors)")
     p.add_argument("--intervals", type=int, default=None,
                    help="collocation intervals per step (default 30 periodic, 12 transient)")
     p.add_argument("--prior", action="append", metavar="NAME=MEAN,SD",
                    help="a Gaussian prior on a free parameter, e.g. the slope as measured: "
                         "slope=0.0785,0.002 (repeatable)")
+    p.add_argument("--multistart", nargs="?", const="", default=None, metavar="DIR",
+                   help="also fit from one start per parameter set in DIR (default: the shipped "
+                        "sets), carried over to this walker in dimensionless form; write the "
+                        "best fit and say whether the starts agree. With --model auto the starts "
+                        "are compared on the periodic model, and the periodicity test then runs "
+                        "from the best start: local optima are a property of the parameters, "
+                        "which both models share, and the periodic fit is the cheaper one")
     p.set_defaults(func=cmd_fit)
 
 
@@ -58,17 +74,26 @@ def cmd_fit(args) -> int:
         table = read_trajectory(args.trajectory)
     except (OSError, ValueError) as err:
         raise CommandError(str(err)) from err
-    options = dict(offsets=not args.no_offsets, n_intervals=args.intervals, priors=priors)
-    test = None
+    options = dict(offsets=not args.no_offsets, n_intervals=args.intervals, priors=priors,
+                   strikes=args.strikes)
+    test = starts = None
     try:
+        if args.multistart is not None:
+            starts = _multi_start(table, params, free, args, options)
+            params = starts.best.params
         if args.model == "auto":
             test = periodicity_test(table, params, free, **options)
             result = test.chosen
+        elif starts is not None:
+            result = starts.best
         else:
             result = fit(table, params, free, model=args.model, **options)
     except FitError as err:
         raise CommandError(str(err)) from err
     report = result.to_json()
+    if starts is not None:
+        report["multistart"] = starts.to_json()
+        report["warnings"] = report["warnings"] + starts.warnings
     if test is not None:
         report["periodicity"] = test.to_json()
         print(f"periodicity: {test.message}")
@@ -83,9 +108,41 @@ def cmd_fit(args) -> int:
         print(f"fitted gait: {gait['map']} map, max |eigenvalue| {gait['max_abs_eigenvalue']:.4g} "
               f"({'stable' if gait['stable'] else 'unstable'})")
     rms = ", ".join(f"{k} {math.degrees(v):.3g} deg" for k, v in result.residual_rms.items()
-                    if k != "step_duration")
-    print(f"residual RMS: {rms}; step duration {1e3 * result.residual_rms['step_duration']:.3g} ms")
-    for note in result.warnings:
+                    if k not in ("step_duration", "strike_time"))
+    timing = f"; step duration {1e3 * result.residual_rms['step_duration']:.3g} ms"
+    if "strike_time" in result.residual_rms:
+        timing += f", heel strikes {1e3 * result.residual_rms['strike_time']:.3g} ms"
+    print(f"residual RMS: {rms}{timing}")
+    for note in report["warnings"]:
         print(f"warning: {note}")
     print(f"{result.status} in {result.iterations} iterations -> {out}")
     return 0 if result.success else 1
+
+
+def _multi_start(table, params, free, args, options):
+    """The multi-start fits (periodic under ``--model auto``), one line per start and the verdict."""
+    from pathlib import Path
+
+    from toywalk.sysid.cli import CommandError
+    from toywalk.sysid.multistart import multi_start
+
+    folder = Path(args.multistart) if args.multistart else None
+    if folder is not None and not folder.is_dir():
+        raise CommandError(f"--multistart needs a folder of parameter files, got {folder}")
+    model = "periodic" if args.model == "auto" else args.model
+    # The Jacobian cross-check is the chosen fit's: under --model auto the periodicity test refits.
+    result = multi_start(table, params, free, starts=folder, model=model,
+                         check_jacobian=args.model != "auto", **options)
+    for k, run in enumerate(result.runs):
+        if run["status"] == "skipped":
+            print(f"start {k + 1} ({run['source']}): skipped: {run['reason']}")
+            continue
+        values = ", ".join(f"{n} {v:.4g}" for n, v in run["estimates"].items())
+        where = f"optimum {run['optimum'] + 1}" if run["optimum"] is not None else "not converged"
+        print(f"start {k + 1} ({run['source']}): {run['status']}, chi2 {run['chi2']:.1f}, "
+              f"{values} ({where})")
+    n = len(result.optima)
+    verdict = "the starts agree" if result.agree else \
+        f"the starts disagree ({n} distinct optima)" if n > 1 else "no start converged"
+    print(f"multistart ({model}): {verdict}; best chi2 {result.best.chi2:.1f}")
+    return result

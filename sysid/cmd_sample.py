@@ -57,7 +57,7 @@ def cmd_sample(args) -> int:
         from toywalk.sysid.diagnostics import write_report
         from toywalk.sysid.sample import posterior_from_fit
 
-        write_report(out, data, Path(args.report), posterior_from_fit(report, table)[0])
+        write_report(out, data, Path(args.report), posterior_from_fit(report, table)[0], table)
     for name in summary.names:
         q5, q50, q95 = data["quantiles_5_50_95"][name]
         rhat = data["rhat"][name] if data["rhat"] else math.nan

@@ -2,7 +2,9 @@
 
 Trace plots (every walker of every ensemble), a corner plot of the kept draws (after burn-in,
 thinned by half an autocorrelation time; ``corner``), the posterior of the gait's max |eigenvalue|
-with the stability line, and ``report.md`` with the diagnostics table. Every file is written under
+with the stability line, the stride-to-stride return map estimated from the measured strides
+beside it (:mod:`toywalk.sysid.returnmap`: the model's stability against the data's, without the
+model), and ``report.md`` with the diagnostics table. Every file is written under
 a temporary name and renamed into place.
 """
 
@@ -38,28 +40,23 @@ def _save(fig, path: Path) -> None:
 
 def _predictive(post, draws: np.ndarray, rng) -> tuple[np.ndarray, np.ndarray]:
     """5 and 95 % quantiles of the model's angle at every observation over posterior draws
-    (offsets at their best values for each draw, as the likelihood profiles them)."""
-    from .likelihood import model_angles
-
+    (offsets and time offset at their best values for each draw, as the likelihood profiles
+    them)."""
     curves = []
     for theta in draws[rng.choice(len(draws), size=min(40, len(draws)), replace=False)]:
         gait, walker = post.gait(theta)
         if gait is None:
             continue
-        angles, _ = model_angles(gait, post.obs, post.planar, walker)
-        if post.offsets:
-            b, weights = post._design, 1.0 / post.sigma**2
-            best = (b.T @ (weights * (post.obs.value - angles))) / np.maximum(b.T @ weights, 1e-300)
-            angles = angles + b @ best
-        curves.append(angles)
+        curves.append(post.profile(gait, walker)[2])
     curves = np.array(curves)
     return np.percentile(curves, 5, axis=0), np.percentile(curves, 95, axis=0)
 
 
-def write_report(chain: Path, summary: dict, folder: Path, post=None) -> list[Path]:
+def write_report(chain: Path, summary: dict, folder: Path, post=None, table=None) -> list[Path]:
     """Write trace.png, corner.png, eigenvalues.png, report.md and report.json into ``folder``;
     with the log-posterior ``post``, also predictive.png (posterior predictive bands over the
-    measured signals)."""
+    measured signals); with the measured walk ``table``, also returnmap.png (the stride map's
+    multipliers from the measured strides against the posterior's)."""
     # Figures built on matplotlib's object API, never pyplot: the caller's backend (a notebook's
     # inline one) is left as it is.
     import corner
@@ -126,6 +123,13 @@ def write_report(chain: Path, summary: dict, folder: Path, post=None) -> list[Pa
     _save(fig, folder / "eigenvalues.png")
     written.append(folder / "eigenvalues.png")
 
+    summary = dict(summary)
+    returnmap_lines = []
+    if table is not None:
+        returnmap_lines = _return_map(table, eig, summary, folder)
+        if (folder / "returnmap.png").exists():
+            written.append(folder / "returnmap.png")
+
     lines = ["# Posterior of the fit's free parameters", "",
              f"{summary['ensembles']} independent ensembles of {summary['walkers']} walkers, "
              f"{summary['length']} steps each; burn-in {burn}, thinned by {thin}.",
@@ -148,6 +152,58 @@ def write_report(chain: Path, summary: dict, folder: Path, post=None) -> list[Pa
     if post is not None:
         lines += ["Posterior predictive bands over the measured signals:", "",
                   "![predictive](predictive.png)", ""]
+    lines += returnmap_lines
     atomic_write_text(folder / "report.md", "\n".join(lines))
     atomic_write_json(folder / "report.json", summary)
     return written + [folder / "report.md", folder / "report.json"]
+
+
+def _return_map(table, eig: np.ndarray, summary: dict, folder: Path) -> list[str]:
+    """The stride map from the measured strides beside the posterior's stride multiplier; adds
+    ``return_map`` to ``summary`` and returns report.md's lines."""
+    from matplotlib.figure import Figure
+
+    from .returnmap import ReturnMapError, return_map
+
+    try:
+        rm = return_map(table, rng=0)
+    except ReturnMapError as err:
+        summary["return_map"] = {"error": str(err)}
+        return ["## The return map from the measured strides", "", f"Not estimated: {err}.", ""]
+    summary["return_map"] = rm.to_json()
+    # The posterior's multiplier per stride: a step-periodic gait's step map squared.
+    stride = eig ** (2 / summary.get("period", 1)) if len(eig) else eig
+    fig = Figure(figsize=(6.5, 3.0))
+    ax = fig.subplots()
+    if len(stride):  # a band: the posterior is often far narrower than the data's intervals
+        low, high = np.percentile(stride, [2.5, 97.5])
+        ax.axvspan(low, max(high, low + 1e-3), color="0.8")
+        ax.axvline(np.median(stride), color="0.3", label="model (posterior median, 95 %)")
+    right = 1.5
+    for k, est in enumerate((rm.naive, rm.corrected, rm.instrumental)):
+        if np.isfinite(est.max_abs_eigenvalue):
+            low, high = est.max_abs_interval
+            right = max(right, min(high, 3.0) + 0.1)
+            ax.errorbar([est.max_abs_eigenvalue], [k + 1], xerr=[[est.max_abs_eigenvalue - low],
+                        [high - est.max_abs_eigenvalue]], fmt="o", color=f"C{k}", capsize=3,
+                        label=f"measured strides, {est.method}")
+    ax.set_xlim(0.0, right)
+    ax.set_ylim(0.3, 4.2)
+    ax.axvline(1.0, color="r", lw=1)
+    ax.set_xlabel("largest stride multiplier |eigenvalue| (< 1: stable)")
+    ax.set_yticks([])
+    ax.legend(fontsize=7, loc="upper left")
+    fig.tight_layout()
+    _save(fig, folder / "returnmap.png")
+    lines = ["## The return map from the measured strides", "",
+             f"{rm.n_pairs} stride pairs, {rm.rank} of {len(rm.coordinates)} section directions "
+             "above the noise (sysid/returnmap.py).", "",
+             "| estimate | max abs eigenvalue | 95 % interval |", "| --- | --- | --- |"]
+    for est in (rm.naive, rm.corrected, rm.instrumental):
+        low, high = est.max_abs_interval
+        lines.append(f"| {est.method} | {est.max_abs_eigenvalue:.3f} | {low:.3f} - {high:.3f} |")
+    if len(stride):
+        lines.append(f"| model (posterior median) | {np.median(stride):.3f} | "
+                     f"{np.percentile(stride, 2.5):.3f} - {np.percentile(stride, 97.5):.3f} |")
+    lines += [""] + [f"- {w}" for w in rm.warnings] + ["", "![return map](returnmap.png)", ""]
+    return lines

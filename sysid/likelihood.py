@@ -11,8 +11,11 @@ the collocation operator). The measurement model is that of :mod:`toywalk.sysid.
 
 The nuisance offsets enter linearly with a fixed design and fixed weights, so with a flat prior
 they integrate out exactly: the marginal likelihood is the profile likelihood (offsets at their
-weighted least-squares values) times a constant. The noise SDs are fixed (the file's, or the
-fit's estimates).
+weighted least-squares values) times a constant. The time offset (the model's first heel strike
+against the measured one, :mod:`toywalk.sysid.measurement`) is profiled too, by Gauss-Newton from
+the fit's value: the profile of a nuisance this well determined (a few hundredths of a
+millisecond) is its marginal to within a constant (Laplace). The noise SDs are fixed (the file's,
+or the fit's estimates).
 
 Priors: uniform within each free parameter's physical bounds (effect declarations, lengths and
 masses non-negative, foot radii below the leg length), flat elsewhere; a parameter set that is
@@ -31,9 +34,9 @@ from toywalk.model.gait import GaitNotFound, solve_fixed_point
 from toywalk.model.parameters import ParameterError, Params
 from toywalk.model.walker import Walker
 
-from .measurement import Observations, components, model_steps, offsets_design
+from .measurement import Observations, components, offsets_design, step_counts
 
-__all__ = ["NO_GAIT", "OK", "OUTSIDE_PRIOR", "LogPosterior", "model_angles"]
+__all__ = ["NO_GAIT", "OK", "OUTSIDE_PRIOR", "GaitCurves", "LogPosterior", "model_angles"]
 
 #: Status codes stored with every sample (the blob's ``status``).
 OK, OUTSIDE_PRIOR, NO_GAIT = 0, 1, 2
@@ -41,22 +44,45 @@ OK, OUTSIDE_PRIOR, NO_GAIT = 0, 1, 2
 # the process, not in the (pickled, per task) posterior object, so a pool worker keeps them.
 _CACHE = 64
 _WARM: dict[str, list] = {}
+#: Gauss-Newton iterations of the time offset's profile (it converges in two or three: the
+#: residuals are nearly linear in it over the few hundredths of a millisecond it moves).
+_PROFILE_ITERATIONS = 5
 
 
-def model_angles(gait, obs: Observations, planar: bool, walker: Walker) -> tuple[np.ndarray, np.ndarray]:
-    """The gait's angle at every observation (rad) and its step duration per measured step (s)."""
-    model_step, component, sign = components(obs, gait.period, planar)
-    out = np.zeros(len(obs.value))
-    durations = np.array([s.step_time for s in gait.steps])
-    for j, step in enumerate(gait.steps):
-        sel = (model_step == j) & (component >= 0)
-        if not np.any(sel):
-            continue
-        derivs = np.array([walker.rhs(x, step.side) for x in step.states])
-        spline = CubicHermiteSpline(step.times, step.states, derivs, axis=0)
-        states = spline(np.clip(obs.phase[sel], 0.0, 1.0) * step.step_time)
-        out[sel] = sign[sel] * states[np.arange(len(states)), component[sel]]
-    return out, durations[model_steps(obs, gait.period)]
+class GaitCurves:
+    """A shot gait read at the observations: its period's integration grid by cubic Hermite
+    interpolation, built once per gait, read at any time offset."""
+
+    def __init__(self, gait, obs: Observations, planar: bool, walker: Walker):
+        self.obs = obs
+        self.model_step, self.component, self.sign = components(obs, gait.period, planar)
+        self.before, _, self.strikes_before = step_counts(obs, gait.period)
+        self.durations = np.array([s.step_time for s in gait.steps])
+        self.splines = []
+        for step in gait.steps:
+            derivs = np.array([walker.rhs(x, step.side) for x in step.states])
+            self.splines.append(CubicHermiteSpline(step.times, step.states, derivs, axis=0))
+        self.t_rel = obs.time - obs.step_start[0]
+        self.strike_rel = obs.strikes - obs.step_start[0]
+
+    def angles(self, time_offset: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """The gait's angle at every observation (rad), read between the model's heel strikes,
+        and the model's strike times from the first measured one (s)."""
+        local = self.t_rel - (time_offset + self.before @ self.durations)
+        out = np.zeros(len(self.obs.value))
+        for j, spline in enumerate(self.splines):
+            sel = (self.model_step == j) & (self.component >= 0)
+            if np.any(sel):
+                states = spline(local[sel])
+                out[sel] = self.sign[sel] * states[np.arange(len(states)), self.component[sel]]
+        return out, time_offset + self.strikes_before @ self.durations
+
+
+def model_angles(gait, obs: Observations, planar: bool, walker: Walker,
+                 time_offset: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """The gait's angle at every observation (rad) and the model's heel-strike times from the
+    first measured one (s) (:class:`GaitCurves`)."""
+    return GaitCurves(gait, obs, planar, walker).angles(time_offset)
 
 
 class LogPosterior:
@@ -82,11 +108,13 @@ class LogPosterior:
     period : int
     priors : dict of str to (float, float), optional
         Gaussian priors ``name -> (mean, sd)`` on some free parameters (on top of the bounds).
+    time_offset : float
+        The fit's time offset (s), where the profile's Gauss-Newton starts.
     """
 
     def __init__(self, params: Params, free, bounds, obs: Observations, sigma: np.ndarray,
                  offsets: bool, z_start: np.ndarray, planar: bool, period: int,
-                 priors: dict | None = None):
+                 priors: dict | None = None, time_offset: float = 0.0):
         self.params, self.free, self.bounds = params, list(free), [tuple(b) for b in bounds]
         priors = priors or {}
         self._prior = [(self.free.index(n), float(m), float(s)) for n, (m, s) in priors.items()]
@@ -94,6 +122,7 @@ class LogPosterior:
         self.offsets, self.planar, self.period = offsets, planar, period
         self.z_start = np.asarray(z_start, float)
         self._design = offsets_design(obs) if offsets else None
+        self.time_offset = float(time_offset)
         self._token = uuid.uuid4().hex  # names this posterior's warm starts in each process
 
     @property
@@ -127,17 +156,40 @@ class LogPosterior:
             return gait, walker
         return None, walker
 
-    def chi2(self, gait, walker) -> float:
-        """Sum of squared whitened residuals, the offsets at their best values."""
-        angles, durations = model_angles(gait, self.obs, self.planar, walker)
+    def _residuals(self, curves: GaitCurves, time_offset: float) -> tuple[np.ndarray, np.ndarray]:
+        """Whitened residuals (angles with the offsets at their best values, then strike times)
+        and the model's angles with those offsets."""
+        angles, strikes = curves.angles(time_offset)
         resid = angles - self.obs.value
         weights = 1.0 / self.sigma**2
         if self.offsets:
             b = self._design
             best = (b.T @ (weights * -resid)) / np.maximum(b.T @ weights, 1e-300)
             resid = resid + b @ best
-        r_dur = (durations - self.obs.durations) / self.obs.duration_sd
-        return float(np.sum(weights * resid**2) + np.sum(r_dur**2))
+            angles = angles + b @ best
+        r_strike = (strikes - curves.strike_rel) / self.obs.strike_sd
+        return np.r_[resid / self.sigma, r_strike], angles
+
+    def profile(self, gait, walker) -> tuple[float, float, np.ndarray]:
+        """``(chi2, time_offset, angles)`` with the offsets and the time offset at their best
+        values (Gauss-Newton on the time offset, central differences of 1 microsecond: the
+        angles are cubic in it, so the difference is exact to round-off times the rates)."""
+        curves = GaitCurves(gait, self.obs, self.planar, walker)
+        dt, h = self.time_offset, 1e-6
+        for _ in range(_PROFILE_ITERATIONS):
+            r0, _ = self._residuals(curves, dt)
+            slope = (self._residuals(curves, dt + h)[0] - self._residuals(curves, dt - h)[0]) / (2 * h)
+            step = -float(slope @ r0) / max(float(slope @ slope), 1e-300)
+            dt += step
+            if abs(step) < 1e-9:
+                break
+        r, angles = self._residuals(curves, dt)
+        return float(r @ r), dt, angles
+
+    def chi2(self, gait, walker) -> float:
+        """Sum of squared whitened residuals, the offsets and the time offset at their best
+        values."""
+        return self.profile(gait, walker)[0]
 
     def __call__(self, theta) -> tuple[float, float, int]:
         theta = np.asarray(theta, dtype=float)

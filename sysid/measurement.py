@@ -1,10 +1,10 @@
 """The measurement model: what a model gait or walk predicts for each measured sample.
 
 A measured walk (a trajectory file, pipeline.md) is cut into steps at its heel strikes. Within a
-step, a sample's **phase** is ``(t - t_strike) / (t_next_strike - t_strike)`` in [0, 1): the model
-gait is aligned to the measurement on the measured heel strikes, step by step, so that a step time
-that differs from the model's shows in the step-time residuals and not as a growing phase drift in
-the angles. The step's stance leg is the foot that landed at its first strike.
+step, a sample's measured **phase** is ``(t - t_strike) / (t_next_strike - t_strike)`` in [0, 1).
+The step's stance leg is the foot that landed at its first strike. :func:`operator` reads the
+model at the measured phases (each step aligned on its measured strikes, taken as exact);
+:class:`Timing` reads it between the model's own strikes (below), which is what the fit does.
 
 The model describes a step in the mirrored description of model.md section 4 (the stance leg as
 the left one). A step with the physical right leg in stance is mirrored back: lean and steer
@@ -18,6 +18,17 @@ Model values at a phase come from the collocation polynomials of the gait BVP
 (:class:`toywalk.model.collocation.BVP`): each is a fixed linear combination of the BVP's
 unknowns (Lagrange weights in the mesh interval holding that phase), so the whole operator is one
 sparse matrix, built once per walk.
+
+The heel strikes are measurements too (a tracker finds them to a fraction of a frame, with a
+``time_sd``), not the model's clock: a strike-time error of 0.3 ms shifts a whole step's angles
+by up to 2.5 mrad where the legs swing at 8.5 rad/s, more than a tracker's noise (measured through
+rendered video: the fit aligned on the tracker's strikes was biased by 4 to 12 SE). So the fit
+predicts the strike times from the model, ``tau_k = t_0 + time_offset + (sum of the model's step
+durations before step k)``, compares them with the measured ones (residuals ``(tau_k - t_k) /
+time_sd_k``), and reads each sample at its phase between the *model's* strikes,
+``(t - tau_k) / T_k`` (:class:`Timing`: a sample's mesh interval is fixed by its measured phase,
+the Lagrange weights within it follow the unknowns). The one new unknown is ``time_offset``, the
+model's first strike against the measured one.
 
 Nuisance parameters: an orientation error of the ramp frame (the camera's pose of the ramp) shows,
 to first order, as constant offsets of lean (roll), steer (yaw) and both pitches (pitch); they
@@ -34,8 +45,9 @@ import scipy.sparse as sp
 from toywalk.model.collocation import BVP
 from toywalk.model.trajectory import SIGNALS, TrajectoryTable
 
-__all__ = ["OFFSETS", "MeasurementError", "Observations", "components", "first_side", "model_steps",
-           "observations", "offsets_design", "operator"]
+__all__ = ["OFFSETS", "MeasurementError", "Observations", "Timing", "components", "first_side",
+           "lagrange_weights", "model_steps", "observations", "offsets_design", "operator", "step_counts",
+           "timing"]
 
 #: Nuisance offsets (rad), one per group of signals: lean, steer, and both pitches.
 OFFSETS = ("lean_offset", "steer_offset", "pitch_offset")
@@ -68,6 +80,8 @@ class Observations:
         Measured angle (rad) and its standard deviation (rad; NaN where the file gives none).
     time : ndarray, shape (n_obs,)
         Sample time (s).
+    strike_sd : ndarray, shape (n_steps + 1,)
+        Standard deviation of each measured heel-strike time (s).
     """
 
     step_start: np.ndarray
@@ -80,10 +94,16 @@ class Observations:
     value: np.ndarray
     sd: np.ndarray
     time: np.ndarray
+    strike_sd: np.ndarray
 
     @property
     def durations(self) -> np.ndarray:
         return self.step_end - self.step_start
+
+    @property
+    def strikes(self) -> np.ndarray:
+        """The measured heel-strike times that bound the complete steps (s), shape (n_steps + 1,)."""
+        return np.r_[self.step_start, self.step_end[-1:]]
 
     @property
     def n_steps(self) -> int:
@@ -150,16 +170,19 @@ def observations(table: TrajectoryTable, signals=SIGNALS) -> Observations:
     return Observations(step_start=start, step_end=end, stance=stance,
                         duration_sd=np.hypot(sd_t[:-1], sd_t[1:]), step=data["step"].astype(int),
                         phase=np.clip(data["phase"], 0.0, 1.0), signal=data["signal"].astype(int),
-                        value=data["value"], sd=data["sd"], time=data["time"])
+                        value=data["value"], sd=data["sd"], time=data["time"], strike_sd=sd_t)
 
 
-def _lagrange(points: np.ndarray, s: float) -> np.ndarray:
-    """Lagrange basis polynomials through ``points`` evaluated at ``s``."""
-    out = np.ones(len(points))
+def lagrange_weights(points, s) -> list:
+    """Lagrange basis polynomials through ``points`` evaluated at ``s`` (a number, a NumPy array or
+    a CasADi expression: arithmetic only), one per point."""
+    out = []
     for r, pr in enumerate(points):
+        weight = 1.0
         for q, pq in enumerate(points):
             if q != r:
-                out[r] *= (s - pq) / (pr - pq)
+                weight = weight * ((s - pq) / (pr - pq))
+        out.append(weight)
     return out
 
 
@@ -214,24 +237,110 @@ def offsets_design(obs: Observations) -> np.ndarray:
     return b
 
 
+def step_counts(obs: Observations, phases: int, periodic: bool = True) -> tuple[np.ndarray, ...]:
+    """How the model's clock runs over the measured steps.
+
+    Returns ``(before, own, strikes_before)``: ``before`` (n_obs, phases), how many steps of each
+    model step precede the observation's step; ``own`` (n_obs, phases), one-hot, the
+    observation's own model step; ``strikes_before`` (n_steps + 1, phases), how many of each
+    precede each measured strike. With ``T`` the model's step durations (phases,), the model's
+    strike ``k`` is at ``t_0 + time_offset + strikes_before[k] @ T``.
+    """
+    steps = model_steps(obs, phases, periodic)
+    strikes_before = np.zeros((obs.n_steps + 1, phases))
+    for k, j in enumerate(steps):
+        strikes_before[k + 1:, j] += 1.0
+    own = np.zeros((len(obs.value), phases))
+    own[np.arange(len(obs.value)), steps[obs.step]] = 1.0
+    return strikes_before[obs.step], own, strikes_before
+
+
+@dataclasses.dataclass
+class Timing:
+    """The model's values of the observations as functions of the BVP's unknowns ``w`` and the
+    time offset (module docstring). Shapes: ``n_obs`` observations, ``n_w`` BVP unknowns.
+
+    Attributes
+    ----------
+    basis : list of scipy.sparse.csr_matrix, each shape (n_obs, n_w)
+        One per node of a mesh interval's polynomial (its start, then the collocation points):
+        ``basis[r] @ w`` is the (mirrored) state component each observation reads at node ``r``
+        of its mesh interval.
+    interval : ndarray of int, shape (n_obs,)
+        Each observation's mesh interval, from its measured phase.
+    before, own, strikes_before : ndarray
+        :func:`step_counts`.
+    t_rel : ndarray, shape (n_obs,)
+        Sample times from the first measured strike (s).
+    strike_rel : ndarray, shape (n_steps + 1,)
+        Measured strike times from the first (s).
+    nodes : ndarray, shape (degree + 1,)
+        The interval polynomial's nodes in [0, 1].
+    n_int : int
+    """
+
+    basis: list
+    interval: np.ndarray
+    before: np.ndarray
+    own: np.ndarray
+    strikes_before: np.ndarray
+    t_rel: np.ndarray
+    strike_rel: np.ndarray
+    nodes: np.ndarray
+    n_int: int
+
+    def local(self, durations, time_offset):
+        """Each observation's position within its mesh interval (0 to 1 inside it), given the
+        model's step durations (phases,) and the time offset (s): NumPy or CasADi."""
+        start = time_offset + _dot(self.before, durations)
+        return (self.t_rel - start) / _dot(self.own, durations) * self.n_int - self.interval
+
+    def values(self, w, durations, time_offset):
+        """The model's angle at every observation (without the ramp-frame offsets)."""
+        weights = lagrange_weights(self.nodes, self.local(durations, time_offset))
+        return sum(weight * _dot(b, w) for weight, b in zip(weights, self.basis, strict=True))
+
+    def strikes(self, durations, time_offset):
+        """The model's heel-strike times, from the first measured one (s)."""
+        return time_offset + _dot(self.strikes_before, durations)
+
+
+def _dot(matrix, vector):
+    """``matrix @ vector`` for a NumPy or SciPy matrix and a NumPy or CasADi vector."""
+    if isinstance(vector, np.ndarray):
+        return matrix @ vector
+    import casadi as ca
+
+    return ca.mtimes(ca.DM(sp.csc_matrix(matrix)) if sp.issparse(matrix) else ca.DM(matrix), vector)
+
+
+def timing(obs: Observations, prob: BVP, planar: bool) -> Timing:
+    """The measurement model with the model's strike times (:class:`Timing`)."""
+    model_step, component, sign = components(obs, prob.phases, planar, prob.periodic)
+    interval = np.minimum((obs.phase * prob.n_int).astype(int), prob.n_int - 1)
+    n_w = prob.phases * prob.phase_size
+    basis = []
+    rows = np.flatnonzero(component >= 0)
+    for r in range(prob.degree + 1):
+        cols = [prob.state_index(model_step[i], interval[i], r) + component[i] for i in rows]
+        basis.append(sp.csr_matrix((sign[rows], (rows, cols)), shape=(len(obs.value), n_w)))
+    before, own, strikes_before = step_counts(obs, prob.phases, prob.periodic)
+    t0 = obs.step_start[0]
+    return Timing(basis=basis, interval=interval, before=before, own=own,
+                  strikes_before=strikes_before, t_rel=obs.time - t0, strike_rel=obs.strikes - t0,
+                  nodes=np.r_[0.0, prob.tau], n_int=prob.n_int)
+
+
 def operator(obs: Observations, prob: BVP, planar: bool) -> tuple[sp.csr_matrix, np.ndarray,
                                                                    np.ndarray]:
-    """The linear map from the BVP's unknowns to the model's values of the observations.
+    """The linear map from the BVP's unknowns to the model's values of the observations, each
+    read at its *measured* phase (the model's strikes on the measured ones).
 
     Returns ``(A, B, phase_of_step)``: ``A`` (n_obs, n_w) sparse, so that ``A @ w`` is the model's
     angle at each observation; ``B`` (n_obs, 3) the offsets' design (:data:`OFFSETS`); and the
     model step (phase of the period) each measured step is compared with.
     """
-    points = np.r_[0.0, prob.tau]
-    model_step, component, sign = components(obs, prob.phases, planar, prob.periodic)
-    rows, cols, vals = [], [], []
-    for i in np.flatnonzero(component >= 0):
-        scaled = obs.phase[i] * prob.n_int
-        m = min(int(scaled), prob.n_int - 1)
-        weights = _lagrange(points, scaled - m)
-        for r in range(prob.degree + 1):
-            rows.append(i)
-            cols.append(prob.state_index(model_step[i], m, r) + component[i])
-            vals.append(sign[i] * weights[r])
-    a = sp.csr_matrix((vals, (rows, cols)), shape=(len(obs.value), prob.phases * prob.phase_size))
+    tm = timing(obs, prob, planar)
+    weights = lagrange_weights(tm.nodes, obs.phase * prob.n_int - tm.interval)
+    a = sum(sp.diags(weight) @ b for weight, b in zip(weights, tm.basis, strict=True)).tocsr()
     return a, offsets_design(obs), model_steps(obs, prob.phases, prob.periodic)

@@ -74,6 +74,10 @@ def posterior_from_fit(report: dict, table: TrajectoryTable) -> tuple[LogPosteri
             notes = "; ".join(report.get("warnings", [])) or "no gait at the estimates"
             raise SampleError(f"the fit did not succeed ({report['status']}: {notes}): sample from "
                               "a fit that did")
+        if "time_offset" not in report["estimates"]:
+            raise SampleError("the fit was aligned on the measured heel strikes (--strikes "
+                              "measured): the posterior reads the model's strikes; fit with the "
+                              "default --strikes model to sample it")
         if report.get("model", "periodic") != "periodic":
             raise SampleError("the fit is of the transient model (the walk is not on its limit "
                               "cycle): the posterior is sampled for the periodic model only; fit "
@@ -106,7 +110,8 @@ def posterior_from_fit(report: dict, table: TrajectoryTable) -> tuple[LogPosteri
     bounds = [parameter_bounds(params, n) for n in free]
     priors = {n: tuple(v) for n, v in report.get("priors", {}).items()}
     post = LogPosterior(params, free, bounds, obs, sigma, offsets, z_start, planar,
-                        gait_period(params, free), priors)
+                        gait_period(params, free), priors,
+                        time_offset=float(report["estimates"].get("time_offset", 0.0)))
     return post, estimates, cov
 
 
@@ -273,6 +278,7 @@ def diagnose_chains(path: str | Path, names, ensembles: int, n_steps: int = 0,
         "quantiles_5_50_95": {n: np.percentile(stacked[..., i], [5, 50, 95]).tolist()
                               for i, n in enumerate(names)},
         "probability_stable": float(np.mean(eig < 1.0)) if len(eig) else None,
+        "period": period,
         "growth_factor_over_observed_steps_median": (
             float(np.median(eig ** (n_steps / period))) if len(eig) and n_steps else None),
     }
