@@ -83,8 +83,8 @@ def test_periodicity_test_rejects_a_released_walk_and_the_transient_fit_recovers
     periodic fit cannot follow it (residuals far above the noise, estimates pulled away); the
     periodicity test rejects the periodic model; the transient fit recovers the foot radius,
     lateral mass offset and trailing share within 3 reported SEs, and the released lean rate.
-    Measured: delta chi-square in the thousands of the noise-scaled units (p ~ 0), transient
-    standardised errors -0.7, 0.1, 1.7."""
+    Measured: delta chi-square in the thousands (p ~ 0); the transient's standardised errors
+    -0.7, 0.1 and 1.7 when fitted aligned on the measured strikes (its first stage)."""
     truth = toy.replace(**{"effects.impact_trailing_share": 0.1})
     table, z0 = _released(truth, 12, 0.002, 1)
     start = truth.replace(**{"foot_radius": 1.1 * truth.foot_radius,
