@@ -60,12 +60,11 @@ from .measurement import (
     model_steps,
     observations,
     offsets_design,
-    operator,
     timing,
 )
 
-__all__ = ["MODELS", "FitError", "FitResult", "PeriodicityTest", "fit", "gait_period", "parameter_bounds",
-           "periodicity_test"]
+__all__ = ["MODELS", "FitError", "FitResult", "PeriodicityTest", "fit", "fit_bounds", "gait_period",
+           "parameter_bounds", "periodicity_test"]
 
 #: The models of a walk :func:`fit` knows.
 MODELS = ("periodic", "transient")
@@ -220,6 +219,19 @@ def parameter_bounds(params: Params, name: str) -> tuple[float, float]:
     low, high = _BASE_BOUNDS.get(name, (-math.inf, math.inf))
     if name in ("foot_radius", "foot_lateral_radius"):
         high = params.leg_length * (1 - 1e-9)
+    return low, high
+
+
+def fit_bounds(params: Params, free, name: str) -> tuple[float, float]:
+    """The fit's bounds on a free parameter: its physical bounds (:func:`parameter_bounds`), and
+    a foot radius bounded by the other when only one of the two is free (model.md section 2: the
+    sideways radius never exceeds the fore-aft one; when both are free a constraint keeps them
+    in order)."""
+    low, high = parameter_bounds(params, name)
+    if name == "foot_radius" and "foot_lateral_radius" not in free:
+        low = max(low, params.foot_lateral_radius)
+    if name == "foot_lateral_radius" and "foot_radius" not in free:
+        high = min(high, params.foot_radius)
     return low, high
 
 
@@ -419,7 +431,6 @@ class _Problem:
         self.prior_sd = np.array([priors[n][1] for n in priors])
         self.tm, self.b_op, self.model_step = tm, b_op, model_step
         self.stage = 1.0 if strikes == "model" else 0.0
-        self.strikes = strikes
         self.offsets = offsets
         n_w = prob.phases * prob.phase_size
         n_f, n_o = len(free), len(OFFSETS)
@@ -453,7 +464,7 @@ class _Problem:
         # time offset and the step durations has other minima (measured: a start at the Tinkertoy's
         # foot radius ended at chi-square 1.4e6 instead of 484); aligned step by step it has not,
         # and from its solution the second stage only refines.
-        a_op = operator(obs, prob, self.planar)[0]
+        a_op = tm.at_phases(obs.phase)
         model_aligned = ca.mtimes(ca.DM(sp.csc_matrix(a_op)), w) + ca.mtimes(ca.DM(b_op), off)
         r_ang_aligned = (model_aligned - ca.DM(obs.value)) * inv_sd
         per_step = ca.vertcat(*[w[prob.duration_index(int(j))] for j in model_step])
@@ -481,11 +492,7 @@ class _Problem:
         })
         low, high = np.full(len(x.nz), -np.inf), np.full(len(x.nz), np.inf)
         for j, name in enumerate(free):
-            lo, hi = parameter_bounds(params, name)
-            if name == "foot_radius" and "foot_lateral_radius" not in free:
-                lo = max(lo, params.foot_lateral_radius)
-            if name == "foot_lateral_radius" and "foot_radius" not in free:
-                hi = min(hi, params.foot_radius)
+            lo, hi = fit_bounds(params, free, name)
             low[n_w + j] = (lo - self.theta0[j]) / self.scale[j]
             high[n_w + j] = (hi - self.theta0[j]) / self.scale[j]
         if not offsets:
@@ -820,12 +827,10 @@ def periodicity_test(table: TrajectoryTable, params: Params, free, *,
     refit = fit(table, chosen.params, free, model=chosen.model, strikes=strikes, **final)
     if appropriate:
         periodic = refit
-    else:
-        transient = refit
-    if appropriate:
         message = (f"the walk is consistent with the model's limit cycle: a free start lowers "
                    f"chi-square by {delta:.3g} on {dof} degrees of freedom (p = {p_value:.3g})")
     else:
+        transient = refit
         message = (f"the walk is not on the model's limit cycle: a free start lowers chi-square by "
                    f"{delta:.4g} on {dof} degrees of freedom (p = {p_value:.2g} < {alpha:g}); the "
                    "periodic fit is not appropriate, use the transient one")

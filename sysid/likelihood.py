@@ -36,7 +36,7 @@ from toywalk.model.walker import Walker
 
 from .measurement import Observations, components, offsets_design, step_counts
 
-__all__ = ["NO_GAIT", "OK", "OUTSIDE_PRIOR", "GaitCurves", "LogPosterior", "model_angles"]
+__all__ = ["NO_GAIT", "OK", "OUTSIDE_PRIOR", "GaitCurves", "LogPosterior", "Reading", "model_angles"]
 
 #: Status codes stored with every sample (the blob's ``status``).
 OK, OUTSIDE_PRIOR, NO_GAIT = 0, 1, 2
@@ -49,33 +49,45 @@ _WARM: dict[str, list] = {}
 _PROFILE_ITERATIONS = 5
 
 
+class Reading:
+    """Where each observation reads a gait of ``period`` steps (model step, state component,
+    mirror sign) and how the model's clock counts steps: everything that does not depend on the
+    gait, built once per posterior rather than per evaluation."""
+
+    def __init__(self, obs: Observations, period: int, planar: bool):
+        model_step, self.component, self.sign = components(obs, period, planar)
+        self.before, _, self.strikes_before = step_counts(obs, period)
+        self.rows = [np.flatnonzero((model_step == j) & (self.component >= 0)) for j in range(period)]
+        self.t_rel = obs.time - obs.step_start[0]
+        self.strike_rel = obs.strikes - obs.step_start[0]
+        self.n_obs = len(obs.value)
+
+
 class GaitCurves:
     """A shot gait read at the observations: its period's integration grid by cubic Hermite
     interpolation, built once per gait, read at any time offset."""
 
-    def __init__(self, gait, obs: Observations, planar: bool, walker: Walker):
-        self.obs = obs
-        self.model_step, self.component, self.sign = components(obs, gait.period, planar)
-        self.before, _, self.strikes_before = step_counts(obs, gait.period)
+    def __init__(self, gait, obs: Observations, planar: bool, walker: Walker,
+                 reading: Reading | None = None):
+        self.reading = reading or Reading(obs, gait.period, planar)
+        self.strike_rel = self.reading.strike_rel
         self.durations = np.array([s.step_time for s in gait.steps])
         self.splines = []
         for step in gait.steps:
             derivs = np.array([walker.rhs(x, step.side) for x in step.states])
             self.splines.append(CubicHermiteSpline(step.times, step.states, derivs, axis=0))
-        self.t_rel = obs.time - obs.step_start[0]
-        self.strike_rel = obs.strikes - obs.step_start[0]
 
     def angles(self, time_offset: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
         """The gait's angle at every observation (rad), read between the model's heel strikes,
         and the model's strike times from the first measured one (s)."""
-        local = self.t_rel - (time_offset + self.before @ self.durations)
-        out = np.zeros(len(self.obs.value))
-        for j, spline in enumerate(self.splines):
-            sel = (self.model_step == j) & (self.component >= 0)
-            if np.any(sel):
-                states = spline(local[sel])
-                out[sel] = self.sign[sel] * states[np.arange(len(states)), self.component[sel]]
-        return out, time_offset + self.strikes_before @ self.durations
+        r = self.reading
+        local = r.t_rel - (time_offset + r.before @ self.durations)
+        out = np.zeros(r.n_obs)
+        for rows, spline in zip(r.rows, self.splines, strict=True):
+            if len(rows):
+                states = spline(local[rows])
+                out[rows] = r.sign[rows] * states[np.arange(len(rows)), r.component[rows]]
+        return out, time_offset + r.strikes_before @ self.durations
 
 
 def model_angles(gait, obs: Observations, planar: bool, walker: Walker,
@@ -122,6 +134,7 @@ class LogPosterior:
         self.offsets, self.planar, self.period = offsets, planar, period
         self.z_start = np.asarray(z_start, float)
         self._design = offsets_design(obs) if offsets else None
+        self._reading = Reading(obs, period, planar)
         self.time_offset = float(time_offset)
         self._token = uuid.uuid4().hex  # names this posterior's warm starts in each process
 
@@ -174,7 +187,7 @@ class LogPosterior:
         """``(chi2, time_offset, angles)`` with the offsets and the time offset at their best
         values (Gauss-Newton on the time offset, central differences of 1 microsecond: the
         angles are cubic in it, so the difference is exact to round-off times the rates)."""
-        curves = GaitCurves(gait, self.obs, self.planar, walker)
+        curves = GaitCurves(gait, self.obs, self.planar, walker, self._reading)
         dt, h = self.time_offset, 1e-6
         for _ in range(_PROFILE_ITERATIONS):
             r0, _ = self._residuals(curves, dt)

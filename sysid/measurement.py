@@ -304,6 +304,12 @@ class Timing:
         """The model's heel-strike times, from the first measured one (s)."""
         return time_offset + _dot(self.strikes_before, durations)
 
+    def at_phases(self, phase: np.ndarray) -> sp.csr_matrix:
+        """The linear map (n_obs, n_w) reading each observation at a fixed phase of its step
+        (:func:`operator`: the measured phases)."""
+        weights = lagrange_weights(self.nodes, phase * self.n_int - self.interval)
+        return sum(sp.diags(weight) @ b for weight, b in zip(weights, self.basis, strict=True)).tocsr()
+
 
 def _dot(matrix, vector):
     """``matrix @ vector`` for a NumPy or SciPy matrix and a NumPy or CasADi vector."""
@@ -340,7 +346,5 @@ def operator(obs: Observations, prob: BVP, planar: bool) -> tuple[sp.csr_matrix,
     angle at each observation; ``B`` (n_obs, 3) the offsets' design (:data:`OFFSETS`); and the
     model step (phase of the period) each measured step is compared with.
     """
-    tm = timing(obs, prob, planar)
-    weights = lagrange_weights(tm.nodes, obs.phase * prob.n_int - tm.interval)
-    a = sum(sp.diags(weight) @ b for weight, b in zip(weights, tm.basis, strict=True)).tocsr()
+    a = timing(obs, prob, planar).at_phases(obs.phase)
     return a, offsets_design(obs), model_steps(obs, prob.phases, prob.periodic)

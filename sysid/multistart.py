@@ -21,7 +21,7 @@ time ``sqrt(l / g)``, as in Garcia et al. 1998, J. Biomech. Eng. 120:281):
   alone: the user's value is kept, and the run says so.
 
 Everything that is not free stays the user's. Each start is clipped into the parameter's physical
-bounds (:func:`toywalk.sysid.fit.parameter_bounds`, and the foot radii kept in order as the fit
+bounds (:func:`toywalk.sysid.fit.fit_bounds`, and the foot radii kept in order as the fit
 keeps them), and starts equal within :data:`DUPLICATE_RTOL` are fitted once, with every set
 they came from named.
 
@@ -48,7 +48,7 @@ from toywalk.model.effects import EFFECTS
 from toywalk.model.parameters import ParameterError, Params, load_params
 from toywalk.model.trajectory import TrajectoryTable
 
-from .fit import FitError, FitResult, fit, parameter_bounds
+from .fit import FitError, FitResult, fit, fit_bounds
 
 __all__ = ["DISTINCT_CHI2", "DISTINCT_SE", "DUPLICATE_RTOL", "SHIPPED_PARAMS", "MultiStart", "Start",
            "carried_over", "multi_start", "shipped_starts"]
@@ -166,21 +166,10 @@ class MultiStart:
 
 
 # ---------------------------------------------------------------------------------- starts
-def _bounds(params: Params, free: list[str], name: str) -> tuple[float, float]:
-    """The fit's bounds on a free parameter (its physical bounds, and a foot radius bounded by
-    the other when only one of the two is free)."""
-    low, high = parameter_bounds(params, name)
-    if name == "foot_radius" and "foot_lateral_radius" not in free:
-        low = max(low, params.foot_lateral_radius)
-    if name == "foot_lateral_radius" and "foot_radius" not in free:
-        high = min(high, params.foot_radius)
-    return low, high
-
-
 def _clipped(params: Params, free: list[str], values: dict, notes: list) -> dict:
     out = {}
     for name in free:
-        low, high = _bounds(params, free, name)
+        low, high = fit_bounds(params, free, name)
         value = float(min(max(values[name], low), high))
         if value != values[name]:
             notes.append(f"{name} {values[name]:.4g} clipped to its bound {value:.4g}")

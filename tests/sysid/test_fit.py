@@ -35,6 +35,18 @@ def _walk(params, steps, noise, seed, gait=None, steps_per_time_unit=16, z0=None
     return TrajectoryTable(traj.times, signals, traj.stance, events, {}), gait
 
 
+#: The parameters the recovery tests fit: foot radius, lateral mass offset and an impact parameter.
+RECOVERED = ["foot_radius", "com_offset[1]", "effects.impact_trailing_share"]
+
+
+def _start_off(truth):
+    """The recovery tests' start: foot radius 10 % and lateral offset 3 % off, trailing share
+    halfway to zero."""
+    return truth.replace(**{"foot_radius": 1.1 * truth.foot_radius,
+                            "com_offset[1]": 0.97 * truth.com_offset[1],
+                            "effects.impact_trailing_share": 0.05})
+
+
 @pytest.fixture(scope="module")
 def toy():
     return load_params(DATA / "params" / "stable-toy.toml")
@@ -87,10 +99,7 @@ def test_fit_recovers_foot_radius_mass_offset_and_impact_share(toy):
     reported standard errors, and the residuals are at the noise level."""
     truth = toy.replace(**{"effects.impact_trailing_share": 0.1})
     table, gait = _walk(truth, 12, 0.002, 1)
-    start = truth.replace(**{"foot_radius": 1.1 * truth.foot_radius,
-                             "com_offset[1]": 0.97 * truth.com_offset[1],
-                             "effects.impact_trailing_share": 0.05})
-    free = ["foot_radius", "com_offset[1]", "effects.impact_trailing_share"]
+    start, free = _start_off(truth), RECOVERED
     result = fit(table, start, free)
     assert result.success, result.status
     for name in free:

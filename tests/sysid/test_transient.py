@@ -12,7 +12,7 @@ from toywalk.sysid.fit import FitError, fit, periodicity_test
 from toywalk.sysid.measurement import MeasurementError, model_steps, observations, operator
 
 from ..conftest import DATA
-from .test_fit import _walk
+from .test_fit import RECOVERED, _start_off, _walk
 
 #: Lean rate of the released walk: 1.3 times the gait's (-0.51 rad/s on the cycle, an extra
 #: -0.15 rad/s); the stable toy's slowest eigenvalues (|lambda| = 0.97) keep this visible over
@@ -87,10 +87,7 @@ def test_periodicity_test_rejects_a_released_walk_and_the_transient_fit_recovers
     -0.7, 0.1 and 1.7 when fitted aligned on the measured strikes (its first stage)."""
     truth = toy.replace(**{"effects.impact_trailing_share": 0.1})
     table, z0 = _released(truth, 12, 0.002, 1)
-    start = truth.replace(**{"foot_radius": 1.1 * truth.foot_radius,
-                             "com_offset[1]": 0.97 * truth.com_offset[1],
-                             "effects.impact_trailing_share": 0.05})
-    free = ["foot_radius", "com_offset[1]", "effects.impact_trailing_share"]
+    start, free = _start_off(truth), RECOVERED
     test = periodicity_test(table, start, free)
     assert test.appropriate is False and test.p_value < 1e-6, test.message
     assert test.dof == 7 and test.chosen is test.transient
