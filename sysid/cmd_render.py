@@ -5,10 +5,15 @@
     toywalk render T.csv --params P.toml [--camera C.json] [--markers M.json] [--noise LEVEL]
                    [--seed S] [--fps F] [--size WxH] [--duration SEC] [--codec FOURCC] --out V.mp4
 
-Without ``--camera`` the camera is :func:`toywalk.tracking.scene.default_camera_for` the walker
-(for the bundled compass-3d walker this is ``data/camera/default.json``); without ``--markers`` the
+Without ``--camera`` the camera frames the walk it is given
+(:func:`toywalk.tracking.render.default_filming`): one fixed camera placed for the walker
+(:func:`toywalk.tracking.scene.default_camera_for`; for the bundled compass-3d walker and a walk of
+a few strides this is ``data/camera/default.json``), moved back to hold a longer walk, or, for a
+walk too long for that, a camera that follows the walker down the ramp. Without ``--markers`` the
 layout is :func:`toywalk.tracking.markers.default_layout` (``data/markers/default.json`` for that
-walker). Both are also written next to the video (``V.camera.json``, ``V.markers.json``).
+walker), with ramp markers all along a followed walk. Both are also written next to the video
+(``V.camera.json``, ``V.markers.json``). A walker that leaves a given camera's view is filmed partly
+out of frame.
 """
 
 from __future__ import annotations
@@ -56,8 +61,7 @@ def cmd_render(args) -> int:
     from toywalk.sysid.cli import CommandError, output_path
     from toywalk.tracking.camera import CameraError, load_camera
     from toywalk.tracking.markers import LayoutError, default_layout, load_layout
-    from toywalk.tracking.render import RenderError, RenderOptions, output_paths, render
-    from toywalk.tracking.scene import default_camera_for
+    from toywalk.tracking.render import RenderError, RenderOptions, default_filming, output_paths, render
 
     out = output_path(args.out, (".mp4", ".avi"))
     traj_path = Path(args.trajectory)
@@ -89,6 +93,12 @@ def cmd_render(args) -> int:
         raise CommandError(f"trajectory file not found: {traj_path}") from err
     except (ValueError, OSError, UnicodeDecodeError) as err:
         raise CommandError(f"cannot read trajectory: {str(err).splitlines()[0]}") from err
+    try:
+        options = RenderOptions.preset(args.noise, fps=float(args.fps), duration=args.duration,
+                                       codec=args.codec)
+    except RenderError as err:
+        raise CommandError(str(err).splitlines()[0]) from err
+    path = None
     if args.camera:
         try:
             camera = load_camera(args.camera)
@@ -99,28 +109,34 @@ def cmd_render(args) -> int:
                                f"{camera.width}x{camera.height}; drop --size or use a matching camera")
         if camera.ramp_pose is None:
             raise CommandError(f"camera {args.camera} has no ramp_pose: the renderer needs a fixed camera")
+        layout = None
     else:
-        camera = default_camera_for(params, *(size or (1280, 720)))
+        try:
+            camera, path, layout = default_filming(table, params, *(size or (1280, 720)), options)
+        except RenderError as err:
+            raise CommandError(str(err).splitlines()[0]) from err
     try:
-        layout = load_layout(args.markers) if args.markers else default_layout(params)
+        if args.markers:
+            layout = load_layout(args.markers)
+        elif layout is None:
+            layout = default_layout(params)
     except LayoutError as err:
         raise CommandError(str(err).splitlines()[0]) from err
     seed = args.seed if args.seed is not None else int(np.random.SeedSequence().entropy % (2**32))
     try:
-        options = RenderOptions.preset(args.noise, fps=float(args.fps), duration=args.duration,
-                                       codec=args.codec)
         progress = _progress if sys.stderr.isatty() else None
         result = render(table, params, camera, layout, options, out, rng=seed,
                         source={"trajectory": str(traj_path), "params": str(args.params),
-                                "camera": args.camera or "default_camera_for(params)",
+                                "camera": args.camera or "default_filming(trajectory, params)",
                                 "markers": args.markers or "default_layout(params)"},
-                        progress=progress)
+                        progress=progress, path=path)
     except RenderError as err:
         raise CommandError(str(err).splitlines()[0]) from err
     if progress is not None:
         sys.stderr.write("\n")
+    shot = "fixed camera" if path is None else "camera following the walker"
     print(f"rendered {result.n_frames} frames ({camera.width}x{camera.height}, {options.fps:g} fps, "
-          f"noise level {args.noise}, seed {seed}) in {result.seconds:.1f} s -> {out}; truth in "
+          f"noise level {args.noise}, seed {seed}, {shot}) in {result.seconds:.1f} s -> {out}; truth in "
           f"{result.paths['truth'].name}")
     return 0
 

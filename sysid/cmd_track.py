@@ -4,10 +4,19 @@ Writes the trajectory files of the raw per-frame estimates (``M.csv``, ``M.event
 ``M.json``: the input of ``fit``, errors independent from frame to frame) and of their smoothed
 copy (``M.smoothed.csv`` and its companions), and optionally an overlay video with the detected
 markers and each body's axes.
+
+The ramp pose is measured from the ramp markers in the video (tracking/ramp.py). Without
+``--camera`` the bundled camera's intrinsics are used and its ramp pose is not (it is where
+``render`` puts the camera for the bundled walker, not where a user's camera stands); a camera file
+given with a ``ramp_pose`` has it checked against the markers and refused, in one line naming the
+angle, if they disagree. Without ``--markers`` the layout is the one ``render`` wrote beside the
+video (``V.markers.json``) if there is one, else the bundled layout. ``M.json`` and the summary
+line say which ramp pose, camera and layout were used.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import math
 from pathlib import Path
@@ -20,8 +29,12 @@ _DATA = Path(__file__).resolve().parents[1] / "data"
 def register(subparsers) -> None:
     p = subparsers.add_parser("track", help="extract the walker's angles and heel strikes from a video")
     p.add_argument("video", help="video file (e.g. from toywalk render)")
-    p.add_argument("--camera", default=None, help="camera file (default: data/camera/default.json)")
-    p.add_argument("--markers", default=None, help="marker layout (default: data/markers/default.json)")
+    p.add_argument("--camera", default=None,
+                   help="camera file; a ramp_pose in it is checked against the ramp markers (default: "
+                        "the intrinsics of data/camera/default.json, the ramp pose measured)")
+    p.add_argument("--markers", default=None,
+                   help="marker layout (default: V.markers.json beside the video if render wrote "
+                        "one, else data/markers/default.json)")
     p.add_argument("--out", required=True, help="trajectory file NAME.csv")
     p.add_argument("--overlay", default=None, help="write a video with detections drawn (.mp4)")
     p.add_argument("--hip-width", type=float, default=None,
@@ -54,11 +67,25 @@ def _default(given, kind: str, name: str) -> Path:
     return path
 
 
+def _layout_path(given, video: Path) -> tuple[Path, str]:
+    """The marker layout file and where it came from: --markers, the layout render wrote beside
+    the video, or the bundled default."""
+    if given is not None:
+        return Path(given), "--markers"
+    from toywalk.tracking.render import output_paths
+
+    beside = output_paths(video)["markers"]
+    if beside.is_file():
+        return beside, "written by render beside the video"
+    return _default(None, "markers", "default.json"), "bundled default"
+
+
 def cmd_track(args) -> int:
     from toywalk.model.trajectory import trajectory_paths, write_trajectory
     from toywalk.sysid.cli import CommandError, _version, output_path
     from toywalk.tracking.camera import CameraError, load_camera
     from toywalk.tracking.markers import LayoutError, load_layout
+    from toywalk.tracking.ramp import RampPoseError
     from toywalk.tracking.track import TrackError, track_video
 
     video = Path(args.video)
@@ -79,13 +106,15 @@ def cmd_track(args) -> int:
         except (OSError, ValueError) as err:
             raise CommandError(f"cannot read --params {args.params}: {str(err).splitlines()[0]}") from err
     camera_path = _default(args.camera, "camera", "default.json")
-    markers_path = _default(args.markers, "markers", "default.json")
+    markers_path, markers_from = _layout_path(args.markers, video)
     try:
         camera = load_camera(camera_path)
+        if args.camera is None:  # the bundled camera's lens, not its placement
+            camera = dataclasses.replace(camera, ramp_pose=None)
         layout = load_layout(markers_path)
         result, source = track_video(video, camera, layout, overlay=overlay, roi=not args.full_search,
                                      hip_width=hip_width)
-    except (CameraError, LayoutError, TrackError) as err:
+    except (CameraError, LayoutError, TrackError, RampPoseError) as err:
         raise CommandError(str(err)) from err
     n = len(result.time)
     gaps = {k: int(sum(1 for v in result.raw[k] if math.isnan(v))) for k in result.raw}
@@ -96,8 +125,10 @@ def cmd_track(args) -> int:
         "timestamps": "per-frame container timestamps (OpenCV CAP_PROP_POS_MSEC read after each "
                       "frame), not an assumed frame rate",
         "units": {"time": "s", "angles": "rad", "sd": "rad"},
-        "camera": {"file": str(camera_path), **camera.to_dict()},
-        "markers": {"file": str(markers_path), "dictionary": layout.dictionary,
+        "camera": {"file": str(camera_path),
+                   "use": "as given" if args.camera else "bundled default: intrinsics only",
+                   **camera.to_dict()},
+        "markers": {"file": str(markers_path), "from": markers_from, "dictionary": layout.dictionary,
                     "description": layout.description},
         "ramp_pose": result.ramp,
         "pixel_sd": result.pixel_sd,
@@ -110,8 +141,9 @@ def cmd_track(args) -> int:
         "hip_width": {"value_m": result.hip_width, "source": result.hip_width_source},
         "sd_method": "joint-fit covariance sigma^2 (J^T J)^-1, pixel sigma pooled over the video from "
                      "reprojection residuals, inflated by (rms / expected rms)^2 where a frame fits "
-                     "worse than the noise explains, propagated to the angles; ramp-pose error not "
-                     "included",
+                     "worse than the noise explains, propagated to the angles; the ramp pose's error "
+                     "added where each frame has its own (a moving camera), else stated in "
+                     "ramp_pose.sd_deg (one bias common to all frames)",
         "events_method": "kink (rate jump) in both leg pitches, continuous piecewise-quadratic "
                          "breakpoint fit; the leading leg strikes; contact position unknown",
         "software": _version(),
@@ -131,5 +163,5 @@ def cmd_track(args) -> int:
     both = sum(1 for i in range(n) if not (math.isnan(result.raw["pitch_left"][i])
                                            or math.isnan(result.raw["pitch_right"][i])))
     print(f"tracked {n} frames ({both} with both legs), {len(result.events)} heel strikes; "
-          f"ramp: {result.ramp['source']} -> {out}")
+          f"ramp pose: {result.ramp['source']}; markers: {markers_path.name} ({markers_from}) -> {out}")
     return 0

@@ -272,7 +272,8 @@ def _leg_flag(normal, up, centre) -> tuple[np.ndarray, np.ndarray]:
     return _rvec_from_axes(right, up), np.asarray(centre, float)
 
 
-def default_layout(params, camera_side: str = "right", dictionary: str = "DICT_4X4_50") -> MarkerLayout:
+def default_layout(params, camera_side: str = "right", dictionary: str | None = None,
+                   reach: float | None = None) -> MarkerLayout:
     """The bundled marker layout, scaled from the walker's parameters.
 
     Each leg carries two flags (ids 0, 1 on the left leg, 2, 3 on the right leg) mounted in front of
@@ -283,8 +284,10 @@ def default_layout(params, camera_side: str = "right", dictionary: str = "DICT_4
     degrees upwards, so that each leg's two marker planes differ and its pose (pitch in particular)
     is well determined. Eight markers lie flat on the ramp (ids
     10-17) in two rows either side of the walking line, from behind the start to 2.3 leg lengths
-    down the ramp: a board that fixes the ramp frame. Sizes scale with the leg length l:
-    leg markers 0.15 l, ramp markers 0.2 l.
+    down the ramp, 0.9 l apart: a board that fixes the ramp frame. Sizes scale with the leg length
+    l: leg markers 0.15 l, ramp markers 0.2 l. With ``reach`` the rows run on, 0.9 l apart, until
+    they cover the ramp that far down (for a camera following a long walk): the left row's ids
+    follow 10, then the right row's.
 
     Parameters
     ----------
@@ -292,7 +295,11 @@ def default_layout(params, camera_side: str = "right", dictionary: str = "DICT_4
         The walker (only the geometry is used).
     camera_side : {'right', 'left'}
         Side of the walking line (looking downhill) on which the camera stands.
-    dictionary : str
+    dictionary : str, optional
+        Default: DICT_4X4_50, or the smallest of DICT_4X4_100, _250, _1000 that holds every id
+        (the 4x4 dictionaries share their first markers, so ids 0-49 look the same in each).
+    reach : float, optional
+        How far down the ramp (m, ramp x) the ramp markers must reach; at least 2.3 l.
     """
     if camera_side not in ("right", "left"):
         raise LayoutError(f"camera_side must be 'right' or 'left', got {camera_side!r}")
@@ -318,8 +325,12 @@ def default_layout(params, camera_side: str = "right", dictionary: str = "DICT_4
     ramp_side = 0.2 * ell
     y_mid = -0.5 * w
     rows = (y_mid + 0.75 * ell + 0.5 * w, y_mid - 0.75 * ell - 0.5 * w)
-    xs = ell * np.array([-0.4, 0.5, 1.4, 2.3])
+    count = 4 if reach is None else max(4, int(math.ceil((float(reach) / ell + 0.4) / 0.9 - 1e-9)) + 1)
+    xs = ell * np.round(-0.4 + 0.9 * np.arange(count), 9)  # -0.4, 0.5, 1.4, 2.3, ... exactly
     ident = np.zeros(3)  # marker x along ramp x, marker y along ramp y, face up: the ramp frame itself
+    if dictionary is None:
+        dictionary = next(name for name in ("DICT_4X4_50", "DICT_4X4_100", "DICT_4X4_250", "DICT_4X4_1000")
+                          if 10 + 2 * count <= int(name.rsplit("_", 1)[1]))
     mid = 10
     for row, y in enumerate(rows):
         for x in xs:

@@ -22,6 +22,13 @@ removed on any error or Ctrl-C):
   ``model.trajectory`` names the metadata of ``V.truth.csv`` ``V.json``;
 - ``V.camera.json``, ``V.markers.json``: the camera and the marker layout used, ready for
   ``toywalk track --camera ... --markers ...``.
+
+A camera that follows the walker (a :class:`toywalk.tracking.scene.CameraPath`, the default for a
+walk too long to frame from one place: :func:`default_filming`) moves during the shutter too: each
+render of a blurred frame is drawn from the camera's pose at its instant. Its poses, frame by frame,
+are in ``V.json`` (``camera_path``); ``V.camera.json`` then holds the lens without a ramp pose, as
+the tracker must measure the ramp in every frame. A walker that leaves a camera's view is drawn
+partly, or not at all, in those frames.
 """
 
 from __future__ import annotations
@@ -37,11 +44,11 @@ import cv2
 import numpy as np
 
 from .camera import Camera
-from .markers import MarkerLayout
-from .scene import Scene, WalkerState
+from .markers import MarkerLayout, default_layout
+from .scene import CameraPath, Scene, WalkerState, default_view
 
 __all__ = ["BLUR_STEP_PX", "NOISE_LEVELS", "Filming", "Motion", "RenderError", "RenderOptions",
-           "RenderResult", "render", "output_paths"]
+           "RenderResult", "default_filming", "render", "output_paths"]
 
 _CODECS = {".mp4": "mp4v", ".avi": "MJPG"}
 
@@ -276,6 +283,10 @@ class Motion:
         """The stance foot's lowest point (x, y) on the ramp (m), from the placed legs."""
         return _lowest_point(self.params, state, stance)[:2]
 
+    def hips(self, times) -> np.ndarray:
+        """The mid-point of the two hip points (ramp frame, m), shape (k, 3), at ``times`` (k,)."""
+        return np.array([0.5 * (s.hip["L"] + s.hip["R"]) for s in map(self.state, times)])
+
 
 def _lowest_point(params, state: WalkerState, leg: str) -> np.ndarray:
     """The lowest point of a leg's foot (ramp frame, m) (model.md section 2)."""
@@ -386,7 +397,7 @@ class Filming:
 
     Parameters
     ----------
-    table, params, camera, layout, options, rng
+    table, params, camera, layout, options, rng, path
         As for :func:`render`.
 
     Attributes
@@ -402,15 +413,20 @@ class Filming:
     """
 
     def __init__(self, table, params, camera: Camera, layout: MarkerLayout, options: RenderOptions,
-                 rng=None):
+                 rng=None, path: CameraPath | None = None):
         if not isinstance(options, RenderOptions):
             raise TypeError(f"options must be RenderOptions, got {type(options).__name__}")
-        if camera.ramp_pose is None:
-            raise RenderError("the camera has no ramp_pose: the renderer needs a fixed camera")
-        self.options, self.camera = options, camera
+        if path is not None and not isinstance(path, CameraPath):
+            raise TypeError(f"path must be a CameraPath or None, got {type(path).__name__}")
+        if camera.ramp_pose is None and path is None:
+            raise RenderError("the camera has no ramp_pose: the renderer needs a fixed camera or a path")
+        self.options, self.path = options, path
         self.rng = np.random.default_rng(rng)
         self.motion = Motion(table, params)
         self.times = _frame_times(self.motion, options)
+        if path is not None:  # the scene starts where the path does
+            camera = dataclasses.replace(camera, ramp_pose=path.pose(float(self.times[0])))
+        self.camera = camera
         self.scene = Scene(params, layout, camera, shadows=options.shadows)
         n = len(self.times)
         self.gains = (1.0 + options.flicker * self.rng.standard_normal(n) if options.flicker > 0
@@ -433,11 +449,13 @@ class Filming:
         offsets = self._shutter(t)
         self.subframes[k] = len(offsets)
         if len(offsets) == 1:
+            self._place(t)
             canvas = scene.draw(motion.state(t))
         else:
             acc = self._acc
             acc[:] = 0
             for dt in offsets:
+                self._place(t + dt)
                 cv2.accumulate(scene.draw(motion.state(t + dt)), acc)
             canvas = cv2.convertScaleAbs(acc, alpha=1.0 / len(offsets))  # >= 0: rounds, saturates
         frame = scene.finish(canvas)
@@ -458,16 +476,30 @@ class Filming:
             frame = cv2.imdecode(buf, cv2.IMREAD_COLOR)
         return frame
 
+    def _place(self, t: float) -> None:
+        """Put a moving camera where it is at time ``t`` (s)."""
+        if self.path is not None:
+            self.scene.set_pose(*self.path.pose(t))
+
     def _shutter(self, t: float) -> np.ndarray:
         """Times (s, relative to ``t``) of the renders averaged for the frame at ``t``: one without
         blur; else spread evenly over the open shutter, at least ``blur_subframes`` of them and
         enough that the walker's image moves at most :data:`BLUR_STEP_PX` between neighbours (its
-        largest displacement over the shutter time, a chord, stands for the path)."""
+        largest displacement over the shutter time, a chord, stands for the path), and, for a
+        moving camera, the ramp's image under the walker too. Vertices behind the camera at either
+        end of the shutter are not counted."""
         if not self.blur:
             return np.zeros(1)
         half = 0.5 * self.options.exposure / self.options.fps
-        moved = np.max(np.linalg.norm(self.scene.walker_pixels(self.motion.state(t + half))
-                                      - self.scene.walker_pixels(self.motion.state(t - half)), axis=1))
+        # for a moving camera, the ramp where the walker stands
+        below = None if self.path is None else self.scene.walker_points(self.motion.state(t)) * [1, 1, 0]
+        ends = []
+        for dt in (half, -half):
+            self._place(t + dt)
+            pixels = self.scene.walker_pixels(self.motion.state(t + dt))
+            ends.append(pixels if below is None else np.concatenate([pixels, self.scene.ramp_pixels(below)]))
+        step = np.linalg.norm(ends[0] - ends[1], axis=1)
+        moved = float(np.max(step[np.isfinite(step)])) if np.isfinite(step).any() else 0.0
         count = int(min(MAX_SUBFRAMES, max(self.options.blur_subframes, math.ceil(moved / BLUR_STEP_PX) + 1)))
         return np.linspace(-half, half, count)
 
@@ -481,7 +513,7 @@ class Filming:
 
 def render(table, params, camera: Camera, layout: MarkerLayout, options: RenderOptions | None = None,
            out_path: str | Path = "video.mp4", rng=None, *, source: str | dict | None = None,
-           progress=None) -> RenderResult:
+           progress=None, path: CameraPath | None = None) -> RenderResult:
     """Render a trajectory to a video with its truth and metadata (module docstring).
 
     Parameters
@@ -492,7 +524,8 @@ def render(table, params, camera: Camera, layout: MarkerLayout, options: RenderO
     params : Params
         The walker drawn (its geometry).
     camera : Camera
-        With a fixed ``ramp_pose``; its image size and distortion are the video's.
+        With a fixed ``ramp_pose`` (unless ``path`` moves it); its image size and distortion are the
+        video's.
     layout : MarkerLayout
         Markers on the legs and the ramp.
     options : RenderOptions, optional
@@ -505,6 +538,8 @@ def render(table, params, camera: Camera, layout: MarkerLayout, options: RenderO
         Where the trajectory came from, for the metadata.
     progress : callable, optional
         Called as ``progress(k, n_frames)`` after each frame.
+    path : CameraPath, optional
+        The camera moves along it (its ramp pose at each instant; ``camera.ramp_pose`` is not used).
 
     Returns
     -------
@@ -523,7 +558,7 @@ def render(table, params, camera: Camera, layout: MarkerLayout, options: RenderO
         raise RenderError(f"output folder does not exist: {video.parent}")
     seed = rng if isinstance(rng, (int, np.integer)) or rng is None else "generator"
     codec = options.codec or _CODECS[suffix]
-    film = Filming(table, params, camera, layout, options, rng)
+    film = Filming(table, params, camera, layout, options, rng, path)
     motion, times, gains, occluders = film.motion, film.times, film.gains, film.occluders
     n = len(times)
 
@@ -542,10 +577,13 @@ def render(table, params, camera: Camera, layout: MarkerLayout, options: RenderO
             raise RenderError(f"cannot open a {codec} video writer for {video.name}")
         truth = np.empty((n, 6))
         stances = []
+        poses = []  # a moving camera's ramp pose in each frame (rvec, tvec), at the frame's time
         for k in range(n):
             writer.write(film.frame(k))
             truth[k, :4], stance, truth[k, 4:] = film.truth(k)
             stances.append(stance)
+            if path is not None:
+                poses.append(np.concatenate(path.pose(float(times[k]))).tolist())
             if progress is not None:
                 progress(k + 1, n)
         writer.release()
@@ -580,7 +618,11 @@ def render(table, params, camera: Camera, layout: MarkerLayout, options: RenderO
             "codec": codec,
             "frame_times": times.tolist(),
             "params": _params_dict(params),
-            "camera": camera.to_dict(),
+            "camera": film.camera.to_dict(),
+            "camera_path": None if path is None else {
+                "kind": "moves without turning (tracking.scene.CameraPath)",
+                "frames": "ramp pose (rvec, tvec) in each frame, at the frame's time",
+                "poses": poses},
             "markers": layout.to_dict(),
             "options": dataclasses.asdict(options),
             "seed": int(seed) if isinstance(seed, np.integer) else seed,
@@ -594,7 +636,9 @@ def render(table, params, camera: Camera, layout: MarkerLayout, options: RenderO
         written = write_trajectory(TrajectoryTable(times, signals, stances, events, meta), tmp["truth"])
         if written[2] != tmp["metadata"]:
             raise RuntimeError(f"unexpected trajectory metadata name {written[2]}")
-        tmp["camera"].write_text(json.dumps(camera.to_dict(), indent=2) + "\n")
+        # a moving camera's lens only: its ramp pose changes from frame to frame
+        lens = film.camera if path is None else dataclasses.replace(film.camera, ramp_pose=None)
+        tmp["camera"].write_text(json.dumps(lens.to_dict(), indent=2) + "\n")
         tmp["markers"].write_text(json.dumps(layout.to_dict(), indent=2) + "\n")
         moves = [*zip(tmp_truth_extra, final_truth_extra, strict=True),
                  *((tmp[key], paths[key]) for key in ("truth", "metadata", "camera", "markers", "video"))]
@@ -608,6 +652,25 @@ def render(table, params, camera: Camera, layout: MarkerLayout, options: RenderO
             p.unlink(missing_ok=True)
         raise
     return RenderResult(paths=paths, frame_times=times, seconds=_time.perf_counter() - t_start)
+
+
+def default_filming(table, params, width: int = 1280, height: int = 720,
+                    options: RenderOptions | None = None) -> tuple[Camera, CameraPath | None, MarkerLayout]:
+    """How ``toywalk render`` films a trajectory when given no camera and no marker layout:
+    (camera, path, layout). One fixed camera frames the walk filmed (the span ``options`` render)
+    where it can do so from near enough (path None); a longer walk is followed along the ramp
+    (:func:`toywalk.tracking.scene.default_view`), with the ramp markers of
+    :func:`toywalk.tracking.markers.default_layout` laid on as far as the camera will look."""
+    motion = Motion(table, params)
+    frames = _frame_times(motion, RenderOptions() if options is None else options)
+    t0, t1 = float(frames[0]), float(frames[-1])
+    # 200 Hz: the path's linear pieces are far shorter than a frame interval at 60 fps
+    times = np.linspace(t0, t1, max(2, int(math.ceil((t1 - t0) * 200.0)) + 1))
+    camera, path = default_view(params, times, motion.hips(times), width, height)
+    reach = None
+    if path is not None:  # the default rows reach 2.3 l, the corridor's front 2.2 l ahead
+        reach = 2.3 * float(params.leg_length) + float(np.max(path.offsets[:, 0]))
+    return camera, path, default_layout(params, reach=reach)
 
 
 def _params_dict(params) -> dict:

@@ -26,7 +26,8 @@ import numpy as np
 from .camera import Camera, default_camera, pose_matrix, undistort_pixels
 from .markers import Marker, MarkerLayout, marker_corners, marker_pose_matrix
 
-__all__ = ["Scene", "WalkerState", "default_camera_for", "light_direction", "look_at"]
+__all__ = ["FOLLOW_BEYOND", "CameraPath", "Scene", "WalkerState", "default_camera_for", "default_view",
+           "follow_walk", "light_direction", "look_at"]
 
 #: Direction towards the light in the ramp frame (unit): above, ahead and to the left of the walker.
 _LIGHT = np.array([0.45, 0.5, 1.0])
@@ -80,30 +81,42 @@ def look_at(position, target, up) -> tuple[np.ndarray, np.ndarray]:
     return cv2.Rodrigues(rot)[0].ravel(), -rot @ np.asarray(position, float)
 
 
-def _walk_box(params) -> np.ndarray:
+def _walk_box(params, walk=None) -> np.ndarray:
     """Corners, shape (8, 3), of the region the default camera must see: the walking corridor from
-    behind the start to about three leg lengths down the ramp (several strides), up to the hips."""
+    behind the start to about three leg lengths down the ramp (several strides), up to the hips.
+    With ``walk`` (mid-hip points, shape (k, 3), ramp frame, m) it grows where the walker leaves
+    it: to 0.4 l ahead of the hips (the leading foot and the flags), 0.15 l behind them (the camera
+    stands ahead: the corridor's own 0.4 l behind the start is for the trailing foot) and
+    0.3 l + w/2 either side (the legs and their flags), so that a walk of a few strides keeps the
+    corridor as it is."""
     ell, w = float(params.leg_length), float(params.hip_width)
     y_mid = -0.5 * w
     half = 0.8 * ell + 0.5 * w
     xs, ys, zs = (-0.4 * ell, 2.2 * ell), (y_mid - half, y_mid + half), (0.0, 1.0 * ell)
+    if walk is not None:
+        walk = np.asarray(walk, float).reshape(-1, 3)
+        side = 0.3 * ell + 0.5 * w
+        xs = (min(xs[0], walk[:, 0].min() - 0.15 * ell), max(xs[1], walk[:, 0].max() + 0.4 * ell))
+        ys = (min(ys[0], walk[:, 1].min() - side), max(ys[1], walk[:, 1].max() + side))
     return np.array([[x, y, z] for x in xs for y in ys for z in zs])
 
 
 def default_camera_for(params, width: int = 1280, height: int = 720, horizontal_fov_deg: float = 50.0,
-                       distortion=(-0.08, 0.03, 0.0, 0.0, 0.0), camera_side: str = "right") -> Camera:
+                       distortion=(-0.08, 0.03, 0.0, 0.0, 0.0), camera_side: str = "right",
+                       walk=None) -> Camera:
     """A fixed camera filming the walker come down the ramp, scaled from its leg length.
 
     The camera stands ahead (downhill) of the walker and to one side, 35 degrees off the walking
     line, 25 degrees above the ramp, upright with respect to gravity, at the distance that fits the
-    walking corridor of :func:`_walk_box` (several strides) in the frame. From there it sees the
-    legs' pitch (side-on component), lean (head-on component) and the forward-facing marker flags of
+    walking corridor of :func:`_walk_box` (several strides; with ``walk``, hip points (k, 3) in the
+    ramp frame (m), the whole walk) in the frame. From there it sees the legs' pitch (side-on
+    component), lean (head-on component) and the forward-facing marker flags of
     :func:`toywalk.tracking.markers.default_layout`. The lens has mild barrel distortion, as a
     webcam's would.
     """
     if camera_side not in ("right", "left"):
         raise ValueError(f"camera_side must be 'right' or 'left', got {camera_side!r}")
-    box = _walk_box(params)
+    box = _walk_box(params, walk)
     target = box.mean(axis=0)
     az, el = math.radians(35.0), math.radians(25.0)
     sgn = -1.0 if camera_side == "right" else 1.0
@@ -131,6 +144,99 @@ def default_camera_for(params, width: int = 1280, height: int = 720, horizontal_
     rvec, tvec = look_at(target + hi * direction, target, up)
     return Camera(width=width, height=height, matrix=k, distortion=base.distortion,
                   ramp_pose=(np.round(rvec, 9), np.round(tvec, 9)))
+
+
+@dataclasses.dataclass(frozen=True)
+class CameraPath:
+    """A camera that moves without turning: the ramp-to-camera pose over time.
+
+    Attributes
+    ----------
+    rvec, tvec : ndarray, shape (3,)
+        The pose with the camera where it starts (rad, m).
+    times : ndarray, shape (k,)
+        Increasing times (s).
+    offsets : ndarray, shape (k, 3)
+        The camera centre's displacement from its start at those times (ramp frame, m),
+        interpolated linearly between them and held beyond them.
+    """
+
+    rvec: np.ndarray
+    tvec: np.ndarray
+    times: np.ndarray
+    offsets: np.ndarray
+
+    def __post_init__(self) -> None:
+        times = np.asarray(self.times, float).reshape(-1)
+        offsets = np.asarray(self.offsets, float).reshape(-1, 3)
+        if len(times) < 1 or len(offsets) != len(times) or np.any(np.diff(times) <= 0) \
+                or not (np.all(np.isfinite(times)) and np.all(np.isfinite(offsets))):
+            raise ValueError(f"a camera path needs increasing finite times and one finite offset (3,) "
+                             f"each, got {len(times)} times and {len(offsets)} offsets")
+        object.__setattr__(self, "times", times)
+        object.__setattr__(self, "offsets", offsets)
+        object.__setattr__(self, "rvec", np.asarray(self.rvec, float).reshape(3))
+        object.__setattr__(self, "tvec", np.asarray(self.tvec, float).reshape(3))
+
+    def pose(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """(rvec, tvec) of the ramp in the camera frame at time ``t`` (s)."""
+        offset = np.array([np.interp(t, self.times, self.offsets[:, j]) for j in range(3)])
+        rot = pose_matrix(self.rvec, self.tvec)[:3, :3]
+        return self.rvec.copy(), self.tvec - rot @ offset
+
+
+def follow_walk(camera: Camera, params, times, hips) -> CameraPath:
+    """``camera`` (placed by :func:`default_camera_for` for the default corridor) following a walk
+    down the ramp, as a camera carried alongside would: it stands still until the walker's hips
+    pass the corridor's centre, then moves along the ramp's x axis, without turning, keeping them
+    there. The displacement is the hips' own smoothed by a Gaussian of 2 sqrt(l/g) (about a step),
+    so that the camera does not sway with each step.
+
+    Parameters
+    ----------
+    times : array_like, shape (k,)
+        Evenly spaced times (s).
+    hips : array_like, shape (k, 3)
+        The walker's mid-hip point at those times (ramp frame, m).
+    """
+    from scipy.ndimage import gaussian_filter1d
+
+    times = np.asarray(times, float).reshape(-1)
+    hips = np.asarray(hips, float).reshape(-1, 3)
+    if camera.ramp_pose is None:
+        raise ValueError("the camera to move must have a ramp_pose (where it starts)")
+    if len(times) != len(hips) or len(times) < 2 or not np.allclose(np.diff(times), times[1] - times[0]):
+        raise ValueError("follow_walk needs evenly spaced times and one hip point (3,) for each")
+    hold = float(_walk_box(params).mean(axis=0)[0])
+    ahead = np.maximum(hips[:, 0] - hold, 0.0)
+    sigma = 2.0 * math.sqrt(float(params.leg_length) / float(params.gravity)) / (times[1] - times[0])
+    offsets = np.zeros((len(times), 3))
+    offsets[:, 0] = gaussian_filter1d(ahead, sigma, mode="nearest")
+    return CameraPath(*camera.ramp_pose, times, offsets)
+
+
+#: The default camera frames a whole walk from one place (:func:`default_camera_for` with the walk)
+#: while it stands at most this many times as far away as the camera framing the default corridor
+#: (its markers keep 80 % of their size or more, as at 25-30 px wide for the bundled layouts at
+#: 1280x720, where the tracker meets its targets); beyond that it follows the walker.
+FOLLOW_BEYOND = 1.25
+
+
+def default_view(params, times, hips, width: int = 1280,
+                 height: int = 720) -> tuple[Camera, CameraPath | None]:
+    """The camera filming a walk by default: (camera, None), one fixed camera framing the whole
+    walk, or, for a walk too long for that (:data:`FOLLOW_BEYOND`), (camera, path), the camera
+    framing the default corridor and following the walker (:func:`follow_walk`). ``times`` and
+    ``hips`` as for :func:`follow_walk`."""
+    def distance(camera, box):  # from the camera's centre to the box's (m)
+        rot = pose_matrix(*camera.ramp_pose)[:3, :3]
+        return float(np.linalg.norm(-rot.T @ camera.ramp_pose[1] - box.mean(axis=0)))
+
+    near = default_camera_for(params, width, height)
+    whole = default_camera_for(params, width, height, walk=hips)
+    if distance(whole, _walk_box(params, hips)) <= FOLLOW_BEYOND * distance(near, _walk_box(params)):
+        return whole, None
+    return near, follow_walk(near, params, times, hips)
 
 
 # --- meshes ---------------------------------------------------------------------------------------
@@ -339,7 +445,80 @@ class Scene:
         self._vertices = {leg: np.concatenate([self.meshes[leg][0].reshape(-1, 3)]
                                               + [corners for _m, _t, corners, _n, _s in self.flags[leg]])
                           for leg in ("L", "R")}
+        self._dictionary = dictionary
         self.background = self._draw_static(dictionary)
+        self._home = (self.r_cam, self.t_cam, self.background)  # the pose it was drawn for
+        self._reference = None  # static layers for a moved camera (see set_pose)
+        self._stale = False
+
+    # a moving camera
+    def set_pose(self, rvec, tvec) -> None:
+        """Move the camera (same lens) to the ramp-to-camera pose (rvec, tvec) for what follows.
+
+        The walker is drawn from there. The static scene is the ramp (a plane) in front of a
+        backdrop fixed to the image, so its image from any pose is the image of the ramp from a
+        reference pose warped by the homography between the two (exact for the pinhole canvas;
+        the lens distortion comes after, in :meth:`finish`), resampled bilinearly. The reference is
+        ray cast on a canvas grown by a quarter of its size on every side, and again from the
+        current pose whenever the view leaves it.
+        """
+        pose = pose_matrix(rvec, tvec)
+        rot, t = pose[:3, :3], pose[:3, 3]
+        if np.array_equal(rot, self.r_cam) and np.array_equal(t, self.t_cam):
+            return
+        self.r_cam, self.t_cam = rot, t
+        self._stale = True
+
+    def _static(self) -> np.ndarray:
+        """The static scene's canvas image (uint8) from the current pose."""
+        if self._stale:
+            home_r, home_t, home = self._home
+            if np.array_equal(self.r_cam, home_r) and np.array_equal(self.t_cam, home_t):
+                self.background = home
+            else:
+                self.background = self._moved_static()
+            self._stale = False
+        return self.background
+
+    def _moved_static(self) -> np.ndarray:
+        wc, hc = self.canvas_size
+        if self._reference is None or not self._covered(self._reference[3]):
+            pad = int(round(0.25 * max(wc, hc)))
+            img, on_ramp = self._static_layers(self._dictionary, pad)
+            size = (wc + 2 * pad, hc + 2 * pad)
+            # premultiplied ramp layer and its coverage (INTER_AREA averages 2x2 blocks: linear)
+            ramp = cv2.resize(np.where(on_ramp[..., None], img, np.float32(0)), size,
+                              interpolation=cv2.INTER_AREA)
+            cover = cv2.resize(on_ramp.astype(np.float32), size, interpolation=cv2.INTER_AREA)
+            sky = cv2.resize(_gradient(2 * hc, 2 * wc), (wc, hc), interpolation=cv2.INTER_AREA)
+            k = self.k_canvas.copy()
+            k[0, 2] += pad
+            k[1, 2] += pad
+            self._reference = (ramp, cover, sky, _plane_homography(k, self.r_cam, self.t_cam))
+        ramp, cover, sky, h_ref = self._reference
+        warp = _plane_homography(self.k_canvas, self.r_cam, self.t_cam) @ np.linalg.inv(h_ref)
+        ramp = cv2.warpPerspective(ramp, warp, (wc, hc), flags=cv2.INTER_LINEAR,
+                                   borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        cover = cv2.warpPerspective(cover, warp, (wc, hc), flags=cv2.INTER_LINEAR,
+                                    borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        return np.clip(ramp + sky * (1 - cover)[..., None] + 0.5, 0, 255).astype(np.uint8)
+
+    def _covered(self, h_ref: np.ndarray) -> bool:
+        """Whether every corner of the canvas sees the ramp plane in front of the camera at a
+        point inside the reference canvas of ``h_ref`` (then the whole canvas does: a homography
+        maps the canvas to a convex quadrilateral)."""
+        wc, hc = self.canvas_size
+        corners = np.array([[0, 0, 1], [wc - 1, 0, 1], [wc - 1, hc - 1, 1], [0, hc - 1, 1]], float).T
+        plane = np.linalg.solve(_plane_homography(self.k_canvas, self.r_cam, self.t_cam), corners)
+        if np.any(np.abs(plane[2]) < 1e-12):
+            return False
+        xy = plane[:2] / plane[2]
+        depth = self.r_cam[2, :2] @ xy + self.t_cam[2]
+        ref = h_ref @ np.vstack([xy, np.ones(4)])
+        rows, cols = self._reference[0].shape[:2]
+        u, v = ref[0] / ref[2], ref[1] / ref[2]
+        return bool(np.all(depth > 0) and np.all(ref[2] > 0) and np.all((u >= 0) & (u <= cols - 1))
+                    and np.all((v >= 0) & (v <= rows - 1)))
 
     # canvas: an undistorted pinhole image covering the distorted one
     def _setup_canvas(self):
@@ -378,11 +557,22 @@ class Scene:
         lam = normals_ramp @ self.light
         return _AMBIENT + (1 - _AMBIENT) * np.clip(lam, 0, None)
 
-    # static: background and ramp, ray cast once at 2x supersampling
+    # static: background and ramp, ray cast at 2x supersampling
     def _draw_static(self, dictionary) -> np.ndarray:
+        """The canvas image (uint8) of the static scene from the current pose."""
+        img, _ = self._static_layers(dictionary)
+        small = cv2.resize(img, self.canvas_size, interpolation=cv2.INTER_AREA)
+        return np.clip(small + 0.5, 0, 255).astype(np.uint8)
+
+    def _static_layers(self, dictionary, pad: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """The static scene ray cast at 2x supersampling on the canvas grown by ``pad`` pixels on
+        every side: (image, float32 (rows, cols, 3); whether each sample hits the ramp, bool)."""
         ss = 2
         wc, hc = self.canvas_size
-        k = self.k_canvas
+        wc, hc = wc + 2 * pad, hc + 2 * pad
+        k = self.k_canvas.copy()
+        k[0, 2] += pad
+        k[1, 2] += pad
         uu = np.arange(wc * ss, dtype=np.float32)[None, :]
         vv = np.arange(hc * ss, dtype=np.float32)[:, None]
         y = ((vv + 0.5) / ss - 0.5 - np.float32(k[1, 2])) / np.float32(k[1, 1])
@@ -398,11 +588,7 @@ class Scene:
         hit = s > 0
         px = np.where(hit, c[0] + s * dx, np.nan).astype(np.float32)
         py = np.where(hit, c[1] + s * dy, np.nan).astype(np.float32)
-        # background: a vertical grey-blue gradient
-        grad = np.linspace(0, 1, hc * ss, dtype=np.float32)[:, None]
-        bg = np.empty((hc * ss, wc * ss, 3), np.float32)
-        for ch, (top, bottom) in enumerate(((190, 120), (180, 110), (170, 100))):
-            bg[..., ch] = top + (bottom - top) * grad
+        bg = _gradient(hc * ss, wc * ss)
         # ramp extent and wood texture
         ell, w = float(self.params.leg_length), float(self.params.hip_width)
         y_mid = -0.5 * w
@@ -413,6 +599,11 @@ class Scene:
             pts = marker_corners(m, m.margin)
             xr = (min(xr[0], pts[:, 0].min() - 0.1 * ell), max(xr[1], pts[:, 0].max() + 0.1 * ell))
             yr = (min(yr[0], pts[:, 1].min() - 0.1 * ell), max(yr[1], pts[:, 1].max() + 0.1 * ell))
+        # and runs on 2.3 leg lengths past its last marker, as far as the default layout's (a camera
+        # following the walker down a long ramp sees that far ahead)
+        ramp_x = [m.tvec[0] for m in self.layout.on("ramp")]
+        if ramp_x and max(ramp_x) + 2.3 * ell > xr[1] + 1e-6 * ell:
+            xr = (xr[0], max(ramp_x) + 2.3 * ell)
         tex, ppm = _wood_texture(tuple(map(float, xr)), tuple(map(float, yr)), ell)
         tu = (px - xr[0]) * ppm - 0.5
         tv = (yr[1] - py) * ppm - 0.5
@@ -431,7 +622,7 @@ class Scene:
             corners = marker_corners(m, tex_m.margin) @ self.r_cam.T + self.t_cam
             if np.any(corners[:, 2] <= _NEAR):
                 continue  # (partly) behind the camera: not drawn
-            uv = (self._to_pixels(corners) + 0.5) * ss - 0.5
+            uv = (self._to_pixels(corners, k) + 0.5) * ss - 0.5
             c0, r0 = np.maximum(np.floor(uv.min(axis=0)).astype(int) - 2, 0)
             c1, r1 = np.minimum(np.ceil(uv.max(axis=0)).astype(int) + 3, [ws, hs])
             if c1 <= c0 or r1 <= r0:
@@ -448,8 +639,7 @@ class Scene:
                               borderMode=cv2.BORDER_CONSTANT, borderValue=0).astype(np.float32) / 255
             cover = (cover * on_ramp[win])[..., None]
             img[win] = img[win] * (1 - cover) + (val.astype(np.float32) * shade)[..., None] * cover
-        small = cv2.resize(img, (wc, hc), interpolation=cv2.INTER_AREA)
-        return np.clip(small + 0.5, 0, 255).astype(np.uint8)
+        return img, on_ramp
 
     # per instant
     def body_poses(self, state: WalkerState) -> dict:
@@ -460,18 +650,25 @@ class Scene:
         return out
 
     def walker_pixels(self, state: WalkerState) -> np.ndarray:
-        """Canvas pixels (m, 2) of every vertex of the legs' meshes and flags at ``state``."""
-        poses = self.body_poses(state)
-        out = []
-        for leg in ("L", "R"):
-            rot, t = poses[leg]
-            pc = self._vertices[leg] @ rot.T + t
-            out.append(self._to_pixels(pc[pc[:, 2] > _NEAR]))
-        return np.concatenate(out)
+        """Canvas pixels (m, 2) of every vertex of the legs' meshes and flags at ``state``, the same
+        vertices in the same order at every instant; NaN for those behind the camera."""
+        return self.ramp_pixels(self.walker_points(state))
+
+    def ramp_pixels(self, points) -> np.ndarray:
+        """Canvas pixels (m, 2) of ramp-frame points (m, 3) (m); NaN for those behind the camera."""
+        pc = np.asarray(points, float).reshape(-1, 3) @ self.r_cam.T + self.t_cam
+        uv = self._to_pixels(pc)
+        uv[pc[:, 2] <= _NEAR] = np.nan
+        return uv
+
+    def walker_points(self, state: WalkerState) -> np.ndarray:
+        """Ramp-frame positions (m, 3) of the vertices of :meth:`walker_pixels` at ``state``."""
+        return np.concatenate([self._vertices[leg] @ state.rotation[leg].T + state.hip[leg]
+                               for leg in ("L", "R")])
 
     def draw(self, state: WalkerState, out: np.ndarray | None = None) -> np.ndarray:
         """The ideal (undistorted) canvas image of the walker at ``state``, uint8 (hc, wc, 3)."""
-        img = self.background.copy() if out is None else out
+        img = self._static().copy() if out is None else out
         poses = self.body_poses(state)
         if self.shadows:
             self._draw_shadow(img, poses, state)
@@ -520,8 +717,8 @@ class Scene:
         shade = self._shade(np.where((facing | closed)[:, None], n_ramp, -n_ramp))
         return self._to_pixels(q[keep]), colours[keep] * shade[keep, None], centroid[keep, 2]
 
-    def _to_pixels(self, pts_cam: np.ndarray) -> np.ndarray:
-        k = self.k_canvas
+    def _to_pixels(self, pts_cam: np.ndarray, k=None) -> np.ndarray:
+        k = self.k_canvas if k is None else k
         z = pts_cam[..., 2]
         u = k[0, 0] * pts_cam[..., 0] / z + k[0, 1] * pts_cam[..., 1] / z + k[0, 2]
         v = k[1, 1] * pts_cam[..., 1] / z + k[1, 2]
@@ -559,6 +756,21 @@ class Scene:
         roi = img[lo[1]:hi[1] + 1, lo[0]:hi[0] + 1]
         factor = 1.0 - 0.45 * mask.astype(np.float32) / 255
         roi[:] = np.clip(roi * factor[..., None] + 0.5, 0, 255).astype(np.uint8)
+
+
+def _gradient(rows: int, cols: int) -> np.ndarray:
+    """The backdrop behind the ramp: a vertical grey-blue gradient, float32 (rows, cols, 3)."""
+    grad = np.linspace(0, 1, rows, dtype=np.float32)[:, None]
+    bg = np.empty((rows, cols, 3), np.float32)
+    for ch, (top, bottom) in enumerate(((190, 120), (180, 110), (170, 100))):
+        bg[..., ch] = top + (bottom - top) * grad
+    return bg
+
+
+def _plane_homography(k: np.ndarray, rot: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """3x3 map from ramp-plane points (x, y, 1) (z = 0, m) to homogeneous pixels of a pinhole
+    canvas with intrinsics ``k``, the ramp at pose (rot, t) in the camera frame."""
+    return k @ np.column_stack([rot[:, 0], rot[:, 1], t])
 
 
 def _fill(img: np.ndarray, uv: np.ndarray, colour) -> None:

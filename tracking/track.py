@@ -11,9 +11,11 @@ Per frame (:class:`Tracker`):
 
 After the last frame (:meth:`Tracker.finish`):
 
-3. the ramp pose: the camera file's fixed ``ramp_pose``, else one pose fitted to the ramp markers of
-   all frames jointly (the camera and the ramp are fixed), else, if the frames disagree (a moving
-   camera), each frame's own;
+3. the ramp pose, measured from the ramp markers whenever the video shows them
+   (:mod:`toywalk.tracking.ramp`): one pose fitted to all frames jointly (a fixed camera), else,
+   if the frames disagree (a moving camera), each frame's own; a camera file's fixed
+   ``ramp_pose`` is checked against it, refused if they disagree beyond the measurement's
+   accuracy, and used where they agree or no ramp marker is seen;
 4. the leg rotations in the ramp frame give ``steer, lean, pitch_left, pitch_right`` through
    :func:`toywalk.model.kinematics.angles_from_rotations` (one leg seen: steer and lean from that
    leg's hip axis, the other pitch a gap); standard deviations propagate
@@ -54,6 +56,7 @@ from .events import (
 from .joint import FEET, WalkerPose, fit_walker, rot_y, walker_from_legs
 from .markers import MarkerLayout, body_points
 from .pose import PoseEstimate, estimate_pose
+from .ramp import fixed_ramp, measure_ramp
 
 __all__ = ["FrameSource", "TrackError", "TrackResult", "Tracker", "angles_with_sd", "open_video",
            "track_frames", "track_video", "walker_angles", "walker_angles_with_sd"]
@@ -186,8 +189,8 @@ class Tracker:
             raise TypeError(f"layout must be a MarkerLayout, got {type(layout).__name__}")
         self.camera = camera
         self.layout = layout
-        names = ["left_leg", "right_leg"] + (["ramp"] if camera.ramp_pose is None else [])
-        self.bodies = _make_bodies(layout, names)
+        # the ramp markers are tracked even where the camera file fixes the ramp pose: they check it
+        self.bodies = _make_bodies(layout, ["left_leg", "right_leg", "ramp"])
         if not any(name in self.bodies for name in LEGS):
             raise TrackError("the marker layout has no marker on either leg")
         if camera.ramp_pose is None and "ramp" not in self.bodies:
@@ -274,23 +277,36 @@ class Tracker:
             raise TrackError(f"the video frames are {image.shape[1]}x{image.shape[0]} pixels but the "
                              f"camera file describes {self.camera.width}x{self.camera.height}")
         preds = {name: self._predict(b, frame) if self.roi else None for name, b in self.bodies.items()}
+        fixed = self.camera.ramp_pose
+        if self.roi and preds.get("ramp") is None and fixed is not None and "ramp" in self.bodies:
+            preds["ramp"] = (fixed[0], fixed[1], (np.zeros(3), np.zeros(3)))  # where the file says
         lost = [name for name, p in preds.items() if p is None]
         found: dict = {}
         searched_full = False
-        regions = []
-        self._min_side = math.inf  # smallest predicted marker extent (pixels), set by _regions
-        for name, p in preds.items():
-            if p is not None:
-                regions += self._regions(self.bodies[name], p)
-        if regions:
-            found = self.detector.detect(image, merge_regions(regions, self.camera.width,
-                                                              self.camera.height),
-                                         min_side=self._min_side)
-            self.counts["roi_searches"] += 1
+        # the legs' markers and the ramp's are sought apart: each group's regions with its own
+        # smallest marker size (the detector's thresholds depend on it)
+        searched = False
+        for group in (tuple(LEGS), ("ramp",)):
+            regions = []
+            self._min_side = math.inf  # smallest predicted marker extent (pixels), set by _regions
+            for name in group:
+                if preds.get(name) is not None:
+                    regions += self._regions(self.bodies[name], preds[name])
+            if regions:
+                more = self.detector.detect(image, merge_regions(regions, self.camera.width,
+                                                                 self.camera.height),
+                                            min_side=self._min_side)
+                for i, c in more.items():  # a marker in both groups' regions: the first's find
+                    found.setdefault(i, c)
+                searched = True
+        self.counts["roi_searches"] += searched
         # bodies predicted but not found in their regions count as lost
         for name, p in preds.items():
             if p is not None and not any(self._owner[i] == name for i in found):
                 lost.append(name)
+        # a ramp lost where the camera file fixes its pose is not worth whole-frame searches (its
+        # markers are only a check of that pose); the first frame's search looks for it anyway
+        lost = [name for name in lost if name in LEGS or fixed is None]
         if lost and frame - self._last_full >= self._full_interval:
             full = self.detector.detect(image)
             searched_full = True
@@ -539,14 +555,15 @@ class Tracker:
         pixel_sd = {name: _pooled_pixel_sd(self.poses[name]) for name in self.bodies if name not in LEGS}
         legs_sd = _pooled_walker_sd(walker)
         pixel_sd.update({name: legs_sd for name in LEGS if name in self.bodies})
-        ramp = self._ramp_poses(n, pixel_sd.get("ramp"))
+        ramp = self._ramp_frame(n, pixel_sd.get("ramp"))
         raw = {k: np.full(n, np.nan) for k in SIGNALS}
         sd = {k: np.full(n, np.nan) for k in SIGNALS}
         for i in range(n):
-            r_ramp = ramp["rotations"][i]
+            r_ramp = ramp.rotations[i]
             if r_ramp is None or walker[i] is None:
                 continue
-            values, sds = walker_angles_with_sd(r_ramp, walker[i], legs_sd)
+            values, sds = walker_angles_with_sd(r_ramp, walker[i], legs_sd,
+                                                ramp.covariance[i] if ramp.per_frame else None)
             for k in SIGNALS:
                 raw[k][i], sd[k][i] = values[k], sds[k]
         rejected = _inconsistent_frames(raw)
@@ -560,7 +577,7 @@ class Tracker:
         stance = stance_from_events(time, events, raw["pitch_left"], raw["pitch_right"])
         smooth, smooth_sd = _smooth(time, raw, sd, events, smoothing_window, smoothing_order)
         return TrackResult(time=time, raw=raw, raw_sd=sd, smooth=smooth, smooth_sd=smooth_sd,
-                           stance=stance, events=events, pixel_sd=pixel_sd, ramp=ramp["summary"],
+                           stance=stance, events=events, pixel_sd=pixel_sd, ramp=ramp.summary,
                            frames_with=seen, counts=dict(self.counts),
                            smoothing={"method": "Savitzky-Golay", "window": smoothing_window,
                                       "order": smoothing_order},
@@ -584,52 +601,19 @@ class Tracker:
             out.append(refit if refit is not None else pose)
         return out
 
-    def _ramp_poses(self, n: int, ramp_sd) -> dict:
+    def _ramp_frame(self, n: int, ramp_sd):
+        """The ramp frame (:class:`toywalk.tracking.ramp.RampFrame`): measured from the ramp markers
+        where seen; a camera file's fixed pose checked against that (RampPoseError if they disagree)."""
+        measured = None
+        if "ramp" in self.bodies:
+            measured = measure_ramp(self.camera, self.bodies["ramp"].points, self.detections,
+                                    self.poses["ramp"], ramp_sd)
         if self.camera.ramp_pose is not None:
-            rv, tv = self.camera.ramp_pose
-            rot = cv2.Rodrigues(rv.reshape(3, 1))[0]
-            return {"rotations": [rot] * n,
-                    "summary": {"source": "camera file (fixed ramp_pose)", "rvec": rv, "tvec": tv}}
-        frames = [i for i, p in enumerate(self.poses["ramp"]) if p is not None]
-        if not frames:
+            return fixed_ramp(n, self.camera.ramp_pose, measured)
+        if measured is None:
             raise TrackError(f"no ramp marker found in any of the {n} frames and the camera file has "
                              "no ramp_pose: the ramp frame is unknown")
-        body = self.bodies["ramp"]
-        pick = frames if len(frames) <= 400 else [frames[k] for k in
-                                                  np.linspace(0, len(frames) - 1, 400).astype(int)]
-        # A static ramp: fit one pose to each corner's mean position over the frames (the same
-        # least-squares optimum as stacking every frame, without repeated object points, which
-        # the closed-form PnP solvers reject).
-        obj, img = [], []
-        for m in body.ids:
-            seen = [self.detections[i][m] for i in pick if m in self.detections[i]]
-            if seen:
-                obj.append(body.points[m])
-                img.append(np.mean(seen, axis=0))
-        first = self.poses["ramp"][pick[0]]
-        guess = (first.rvec, first.tvec) if first is not None else None
-        joint = estimate_pose(self.camera, np.concatenate(obj), np.concatenate(img),
-                              guess=guess, max_rms=np.inf)
-        if joint is None:
-            raise TrackError("the ramp markers do not fit one pose: the ramp frame is unknown")
-        per_frame_rms = []
-        for i in pick:
-            ids = [m for m in body.ids if m in self.detections[i]]
-            o = np.concatenate([body.points[m] for m in ids])
-            uv = self._project(o, joint.rvec, joint.tvec)
-            per_frame_rms.append(float(np.sqrt(np.mean((uv - np.concatenate(
-                [self.detections[i][m] for m in ids])) ** 2))))
-        limit = max(1.0, 4.0 * (ramp_sd or 0.0))
-        static = float(np.median(per_frame_rms)) <= limit
-        if static:
-            rot = cv2.Rodrigues(joint.rvec.reshape(3, 1))[0]
-            return {"rotations": [rot] * n,
-                    "summary": {"source": f"ramp markers, one fixed pose fitted to {len(pick)} frames",
-                                "rvec": joint.rvec, "tvec": joint.tvec, "rms_px": joint.rms}}
-        rots = [None if p is None else cv2.Rodrigues(p.rvec.reshape(3, 1))[0] for p in self.poses["ramp"]]
-        return {"rotations": rots,
-                "summary": {"source": "ramp markers, each frame's own pose (the camera moves: frames "
-                                      f"disagree with one fixed pose by {np.median(per_frame_rms):.2g} px)"}}
+        return measured
 
 
 def _inconsistent_frames(raw: dict) -> np.ndarray:
@@ -707,13 +691,16 @@ def walker_angles(r_ramp: np.ndarray, pose: WalkerPose) -> np.ndarray:
     return np.array([lean, steer, *pitches])
 
 
-def walker_angles_with_sd(r_ramp: np.ndarray, pose: WalkerPose, pixel_sd: float) -> tuple[dict, dict]:
+def walker_angles_with_sd(r_ramp: np.ndarray, pose: WalkerPose, pixel_sd: float,
+                          ramp_covariance=None) -> tuple[dict, dict]:
     """Angles of a joint leg pose and their SDs (dicts of SIGNALS name -> rad).
 
     The covariance ``pixel_sd^2 (J^T J)^-1`` of the fit is propagated through
     :func:`walker_angles` by finite differences. It is inflated by ``(rms / rms_expected)^2`` when
     the frame's residual exceeds what the pooled pixel noise explains (blur, a bent edge): such
-    a pose is less certain than its Jacobian says.
+    a pose is less certain than its Jacobian says. ``ramp_covariance`` (3, 3), rad^2, of the ramp
+    rotation's error about its own axes (:mod:`toywalk.tracking.ramp`), where it is this frame's
+    own, is propagated alike and added.
     """
     base = walker_angles(r_ramp, pose)
     angular = [j for j, name in enumerate(pose.names) if name in ("d1", "d3", "pitch_L", "pitch_R")]
@@ -728,7 +715,16 @@ def walker_angles_with_sd(r_ramp: np.ndarray, pose: WalkerPose, pixel_sd: float)
     if pose.dof > 0:
         expected = pixel_sd * math.sqrt(pose.dof / (pose.dof + len(pose.names)))
         cov = cov * max(1.0, (pose.rms / expected) ** 2)
-    sd = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", jac, cov, jac), 0.0))
+    var = np.einsum("ij,jk,ik->i", jac, cov, jac)
+    if ramp_covariance is not None and np.all(np.isfinite(ramp_covariance)):
+        turned = np.zeros((4, 3))
+        for j in range(3):
+            step = np.zeros(3)
+            step[j] = h
+            turned[:, j] = (walker_angles(r_ramp @ cv2.Rodrigues(step)[0], pose) - base) / h
+        turned = np.nan_to_num(turned)
+        var = var + np.einsum("ij,jk,ik->i", turned, np.asarray(ramp_covariance, float), turned)
+    sd = np.sqrt(np.maximum(var, 0.0))
     sd[~np.isfinite(base)] = np.nan
     names = ("lean", "steer", "pitch_left", "pitch_right")
     return dict(zip(names, base, strict=True)), dict(zip(names, sd, strict=True))

@@ -81,8 +81,8 @@ def test_region_search_skipping_short_outlines_finds_the_same(walker):
     tracker = Tracker(camera, layout)
     regions = []
     tracker._min_side = np.inf
-    for name, body in tracker.bodies.items():
-        regions += tracker._regions(body, (*(np.asarray(v, float) for v in poses[name]),
+    for name in ("left_leg", "right_leg"):  # the tracker also follows the ramp: not the walker
+        regions += tracker._regions(tracker.bodies[name], (*(np.asarray(v, float) for v in poses[name]),
                                            (np.zeros(3), np.zeros(3))))
     regions = merge_regions(regions, camera.width, camera.height)
     detector = MarkerDetector(layout.dictionary, camera=camera)
