@@ -23,7 +23,7 @@ from .effects import CONTINUOUS, EFFECTS
 from .engine import SCAN, engine
 from .parameters import N_PARAMS, Params
 
-__all__ = ["STATE_NAMES", "Cycle", "Step", "StepFailure", "Walker"]
+__all__ = ["STATE_NAMES", "Cycle", "Step", "StepFailure", "SwingClearance", "Walker"]
 
 #: Public state order (model.md section 1).
 STATE_NAMES = (
@@ -35,12 +35,77 @@ _PUB_TO_INT_3D = np.array([0, 4, 1, 5, 2, 6, 3, 7])
 # Newton on the last step's length: |h| target (relative to the leg length) and iteration cap.
 _GUARD_TOL = 1e-14
 _GUARD_MAXIT = 30
+# The instant the legs pass (for the clearance): |distance ahead| target, relative to the leg
+# length. The clearance is then off by about this much times dh/d(ahead) (order 1): 1e-10 of a
+# leg is far below any clearance worth reporting, and two or three iterations reach it.
+_PASS_TOL = 1e-10
 # The swing foot must start at least this far (relative to the leg length) behind the stance foot:
 # legs together (a zero-length step) is a trivial fixed point of the step map, not a gait.
 _START_GAP = 1e-6
 # Admissible collision: kinetic energy may not grow by more than round-off (relative to the
 # kinetic energy before), and no normal impulse may pull (relative to the total).
 _IMPACT_RTOL = 1e-12
+
+
+@dataclasses.dataclass(frozen=True)
+class SwingClearance:
+    """How the swing foot clears the ramp over its whole swing, from lift-off to heel strike.
+
+    The swing foot's height is the height h(t) of its lowest point over the ramp plane: for a
+    convex foot over a plane, its distance from the ramp. It leaves the ramp at the heel strike that
+    starts the step (h = 0) and lands on it at the next (h = 0), so its minimum over the closed
+    swing is always 0 and says nothing. The clearance is taken over the open swing, between those
+    two contacts: the lowest interior local minimum of h(t), 0 < t < T (each solved on the flow,
+    dh/dt = 0), or, when h has none (it rises once and falls once), its apex. A swing foot that
+    moves into the ramp at lift-off, or touches it while passing the stance foot, has a negative
+    interior minimum, so the clearance is negative exactly when the swing foot goes below the ramp
+    surface somewhere between the two heel strikes.
+
+    This is a clearance for feet offset sideways by the hip width w (model.md section 2): the
+    swing foot passes beside the stance foot, not through it, and the ramp is the only thing it
+    can hit (torus feet of lateral radius rho never meet while w > 2 rho). Its height as the legs
+    pass is ``-w sin(psi)`` with equal pitches, so lean lifts it (psi < 0: the walker leans onto
+    its stance foot). A walker with w = 0 (the seed's, the compass walker) runs both feet on one
+    line: its clearance is at most 0, and its feet pass through each other, which the model ignores.
+
+    Attributes
+    ----------
+    minimum : float
+        The clearance (m): the lowest interior minimum of h, or its apex when it has none.
+    time : float
+        When it occurs (s after the heel strike that starts the step).
+    phase : float
+        ``time`` as a fraction of the step's duration.
+    ahead : float
+        Where it occurs: the swing foot's lowest point ahead of the stance contact along the heading
+        (m; negative while the swing foot is behind, before the legs pass).
+    beside : float
+        The swing foot's lowest point's distance sideways from the stance contact there (m, about
+        w when the legs are parallel).
+    at_passing : float
+        h at the instant the legs pass (``ahead`` = 0; m).
+    apex : float
+        The highest h over the swing (m).
+    lift_off_rate : float
+        dh/dt just after the heel strike that starts the step (m/s): the trailing foot leaves the
+        ramp only if it is positive.
+    dips : int
+        Interior local minima of h (0: one rise and one fall).
+    """
+
+    minimum: float
+    time: float
+    phase: float
+    ahead: float
+    beside: float
+    at_passing: float
+    apex: float
+    lift_off_rate: float
+    dips: int
+
+    def as_dict(self) -> dict:
+        """JSON-ready copy (m, s, m/s)."""
+        return dataclasses.asdict(self)
 
 
 class StepFailure(RuntimeError):
@@ -69,7 +134,15 @@ class Step:
     scuffs : int
         Downward crossings of the ramp by the swing foot before it passed the stance foot.
     clearance : float
-        Minimum swing-foot height (m) between the legs passing and heel strike.
+        How close the swing foot comes to the ramp after it has passed the stance foot (m): the
+        lower of its height at the instant it passes (solved on the flow) and its interior minima
+        of height after that (sampled on the integration grid and refined by a parabola), the
+        final descent onto the ramp at heel strike excluded. Negative when it passes the stance
+        foot while still below the ramp surface. NaN unless the step was recorded (``record``):
+        the step map itself does not need it. See ``swing`` for the clearance over the whole swing.
+    swing : SwingClearance or None
+        The swing foot's clearance over its whole swing, from lift-off to heel strike, when the step
+        was recorded.
     jacobian : ndarray, shape (8, 8) or None
         dz_plus / dz_0 when requested.
     jacobian_params : ndarray, shape (8, N_PARAMS) or None
@@ -107,6 +180,7 @@ class Step:
     time_gradient_params: np.ndarray | None = None
     times: np.ndarray | None = None
     states: np.ndarray | None = None
+    swing: SwingClearance | None = None
 
 
 @dataclasses.dataclass
@@ -291,8 +365,8 @@ class Walker:
         params_jacobian : bool
             Also compute dz_plus/dp (p in the order of ``PARAMETER_NAMES``); implies ``jacobian``.
         record : bool
-            Also return the samples of the internal state on the integration grid, and the energy
-            each continuous effect has dissipated at them.
+            Also return the samples of the internal state on the integration grid, the energy
+            each continuous effect has dissipated at them, and the swing foot's clearance.
         side : {1, -1}
             The physical leg in stance: +1 the left (z0 is the physical state), -1 the right (z0
             is the mirrored description). Only symmetry-breaking effects tell them apart.
@@ -345,8 +419,10 @@ class Walker:
                 "no_heel_strike",
                 f"the swing foot must start behind the stance foot (it is {g_prev[1]:.3g} m ahead)",
             )
-        passed = False
-        clearance = math.inf
+        # Clearance (see Step; only when recording): the grid sample before the legs pass, and the
+        # swing-foot heights at the grid samples after they have passed, up to the heel strike.
+        x_pass = None
+        after_pass: list[np.ndarray] = []
         blocks = [x0[None, :].copy()] if record else None
         n_max = int(math.ceil(self.max_step_time / dt))
         while True:
@@ -375,13 +451,16 @@ class Walker:
                     break
                 scuffs += 1
             upto = SCAN if j_hit is None else j_hit
-            # Clearance: swing-foot height once it is ahead of the stance foot (legs passed).
-            seen = ahead[:upto] > 0.0
-            if passed or np.any(seen):
-                first = 0 if passed else int(np.argmax(seen))
-                if upto > first:
-                    clearance = min(clearance, float(np.min(h[first:upto])))
-                passed = True
+            if record and x_pass is not None:
+                after_pass.append(h[:upto])
+            elif record:  # do the legs pass in this chunk (possibly in the heel strike's step)?
+                seen = np.flatnonzero(ahead[: SCAN if j_hit is None else j_hit + 1] > 0.0)
+                if len(seen):
+                    first = int(seen[0])
+                    x_pass = xs[:, first - 1].copy() if first > 0 else x.copy()
+                    ahead_pass = (float(ahead[first - 1] if first > 0 else g_prev[1]),
+                                  float(ahead[first]))
+                    after_pass.append(h[first:upto])
             if j_hit is not None:
                 break
             if record:
@@ -418,7 +497,7 @@ class Walker:
             z_minus=self.to_public(x_t),
             contact=contact,
             scuffs=scuffs,
-            clearance=float(clearance),
+            clearance=self._clearance(x_pass, ahead_pass, after_pass, p) if record else math.nan,
             side=side,
             collision_loss=-float(d_kinetic[0]),
             impulses=impulses,
@@ -428,9 +507,125 @@ class Walker:
             out.states = np.concatenate(blocks)
             out.times = np.concatenate([np.arange(hit + 1) * dt, [step_time]])
             out.dissipated = self._dissipated(out.states, out.times, p)
+            out.swing = self._swing_clearance(out.states, out.times, x_pass, ahead_pass, p)
         if jacobian:
             self._step_jacobian(x0, hit, x_before, tau, x_t, out, params_jacobian, p)
         return out
+
+    def _clearance(self, x_pass: np.ndarray, ahead_pass: tuple[float, float], after_pass: list,
+                   p: np.ndarray) -> float:
+        """The swing foot's clearance (m, see :class:`Step`) from the grid state ``x_pass`` just
+        before the legs pass, the swing foot's distance ahead of the stance contact there and one
+        integration step later (``ahead_pass``, m), and the heights at the grid samples after that.
+
+        The passing instant (distance ahead zero) is solved inside its integration step by the
+        Illinois variant of regula falsi (Dowell & Jarratt, BIT 11:168, 1971) to _PASS_TOL; the
+        interior minima of the sampled heights are refined by the parabola through the sample and
+        its two neighbours.
+        """
+        height = self._at_passing(x_pass, ahead_pass, p)
+        heights = np.concatenate([[height], *after_pass])
+        # Interior local minima: samples not higher than both neighbours (the first height is the
+        # passing instant itself; the descent onto the guard ends at the strike, not a minimum).
+        lo, mid, hi = heights[:-2], heights[1:-1], heights[2:]
+        minima = np.flatnonzero((mid <= lo) & (mid <= hi))
+        curve = (lo - 2.0 * mid + hi)[minima]
+        # The parabola's vertex where the neighbours are equally spaced (not next to the passing
+        # instant, which lies off the grid) and curved upwards; else the sample itself.
+        refine = (minima >= 1) & (curve > 0.0)
+        values = mid[minima] - np.where(
+            refine, (hi - lo)[minima] ** 2 / (8.0 * np.where(refine, curve, 1.0)), 0.0)
+        return float(min(heights[0], values.min(initial=np.inf)))
+
+    def _at_passing(self, x_pass: np.ndarray, ahead_pass: tuple[float, float], p: np.ndarray) -> float:
+        """The swing foot's height (m) at the instant the legs pass, from the grid state ``x_pass``
+        just before and the swing foot's distance ahead there and one integration step later.
+
+        Solved inside that integration step by the Illinois variant of regula falsi (Dowell &
+        Jarratt, BIT 11:168, 1971) to _PASS_TOL.
+        """
+        k = self.eng.k
+        a, b = 0.0, self.dt
+        fa, fb = ahead_pass
+        tol = _PASS_TOL * self.params.leg_length
+        height = math.nan
+        for _ in range(_GUARD_MAXIT):
+            tau = b - fb * (b - a) / (fb - fa)
+            height, f = k["guard"](k["step"](x_pass, tau, p)[0], p)[0].ravel()
+            if abs(f) <= tol:
+                break
+            if (f > 0.0) == (fb > 0.0):
+                b, fb = tau, f
+                fa *= 0.5  # Illinois: halve the retained end's value so that it moves too
+            else:
+                a, fa = b, fb
+                b, fb = tau, f
+        return float(height)
+
+    def _swing_clearance(self, states: np.ndarray, times: np.ndarray, x_pass: np.ndarray,
+                         ahead_pass: tuple[float, float], p: np.ndarray) -> SwingClearance:
+        """The :class:`SwingClearance` of a recorded step: internal states ``states`` (n, nx) at
+        ``times`` (n,), from just after one heel strike to just before the next.
+
+        The interior extrema of the swing foot's height are found on the samples and each is then
+        solved on the flow: dh/dtau = 0 along the integrator's step from the sample before it, over
+        the two sample intervals around it, by the Illinois variant of regula falsi, so that the
+        values do not depend on the integration grid beyond the integrator's own error.
+        """
+        k = self.eng.k
+        guard = np.array([k["guard"](x, p)[0].ravel().copy() for x in states])
+        h = guard[:, 0]
+        lo, mid, hi = h[:-2], h[1:-1], h[2:]
+        minima = np.flatnonzero((mid <= lo) & (mid < hi)) + 1
+        maxima = np.flatnonzero((mid >= lo) & (mid > hi)) + 1
+        lift_off_rate = float(k["final"](states[0], 0.0, p)[1][0, 0])
+        apex = max((self._extremum(states, times, i, p) for i in maxima),
+                   default=(float(h.max()), float(times[int(np.argmax(h))]), states[int(np.argmax(h))]),
+                   key=lambda e: e[0])
+        lowest = min((self._extremum(states, times, i, p) for i in minima), default=apex,
+                     key=lambda e: e[0])
+        height, time, x = lowest
+        points = k["points"](x, p)[0]  # (3, 9): column 6 is the swing foot's lowest point
+        heading = 0.0 if self.planar else float(x[0])
+        c2 = points[:, 6]
+        ahead = math.cos(heading) * c2[0] + math.sin(heading) * c2[1]
+        beside = abs(-math.sin(heading) * c2[0] + math.cos(heading) * c2[1])
+        step_time = float(times[-1])
+        return SwingClearance(
+            minimum=float(height), time=float(time), phase=float(time / step_time),
+            ahead=float(ahead), beside=float(beside),
+            at_passing=self._at_passing(x_pass, ahead_pass, p), apex=float(apex[0]),
+            lift_off_rate=lift_off_rate, dips=len(minima))
+
+    def _extremum(self, states: np.ndarray, times: np.ndarray, i: int,
+                  p: np.ndarray) -> tuple[float, float, np.ndarray]:
+        """(h, t, x) at the extremum of the swing foot's height next to sample ``i``: the root of
+        dh/dtau along the integrator's step from sample i - 1, tau in [0, t[i+1] - t[i-1]].
+        The sample itself when the rate does not change sign there (a flat stretch)."""
+        final = self.eng.k["final"]
+        x0 = states[i - 1]
+        a, b = 0.0, float(times[i + 1] - times[i - 1])
+        fa = float(final(x0, a, p)[1][0, 0])
+        fb = float(final(x0, b, p)[1][0, 0])
+        if not fa * fb < 0.0:
+            x = states[i]
+            return float(self.eng.k["guard"](x, p)[0][0, 0]), float(times[i]), x.copy()
+        # dh/dtau is the height's rate; its root to _PASS_TOL of a leg length per time unit.
+        tol = _PASS_TOL * self.params.leg_length / self.params.time_scale
+        tau = a
+        for _ in range(_GUARD_MAXIT):
+            tau = b - fb * (b - a) / (fb - fa)
+            f = float(final(x0, tau, p)[1][0, 0])
+            if abs(f) <= tol:
+                break
+            if (f > 0.0) == (fb > 0.0):
+                b, fb = tau, f
+                fa *= 0.5
+            else:
+                a, fa = b, fb
+                b, fb = tau, f
+        g, _, xt = final(x0, tau, p)
+        return float(g[0, 0]), float(times[i - 1] + tau), xt.ravel().copy()
 
     def _dissipated(self, states: np.ndarray, times: np.ndarray, p: np.ndarray) -> np.ndarray:
         """Cumulative energy dissipated by each continuous effect at the recorded samples (J)."""

@@ -7,10 +7,29 @@ import pytest
 from toywalk.model.continuation import continue_branch
 from toywalk.model.gait import find_gait
 from toywalk.model.parameters import ParameterError, load_params
+from toywalk.model.walker import Walker
 
 from ..conftest import DATA
+from .test_research_gaits import assert_documented
 
 GARCIA_BOUNDARY = 0.0150884  # anchors.md: an eigenvalue through -1 (Garcia et al. 1998, recomputed)
+# A branch point is a gait when one step from it returns to it: |P(z) - z| (rates scaled by
+# sqrt(l/g)) within continuation's corrector tolerance 1e-10 (model/continuation.py); its points are
+# then polished by Newton, measured 2e-15 to 5e-14.
+GAIT_TOL = 1e-10
+
+
+def assert_points_are_gaits(params, branch):
+    """Every point of ``branch`` is a gait of ``params`` with the point's parameter value, stepped
+    by a fresh walker (step-map residual), with the step time the point reports."""
+    for point in branch.points:
+        walker_params = params.replace(**{branch.name: point.value})
+        step = Walker(walker_params).step(point.fixed_point)
+        scale = np.array([1.0, walker_params.time_scale] * 4)
+        residual = np.max(np.abs((step.z_plus - point.fixed_point) * scale))
+        assert residual < GAIT_TOL, f"{branch.name} = {point.value}: |P(z) - z| = {residual:.3g}"
+        # The point reports the step time of this very step (a mismatch: numbers from another state).
+        assert abs(step.step_time - point.step_time) < GAIT_TOL * walker_params.time_scale
 
 
 @pytest.fixture(scope="module")
@@ -41,6 +60,7 @@ def test_continuation_in_a_3d_parameter():
     values = [p.value for p in branch.points]
     assert values[0] == 0.02 and values[-1] == 0.04
     assert all(np.diff(values) > 0)  # no fold in this range: monotone parameter
+    assert_points_are_gaits(params, branch)
 
 
 def test_continuation_bad_input(simplest):
@@ -78,10 +98,10 @@ def test_fold_is_found_and_is_a_fold():
     below the turning value the branch holds two different gaits at the same parameter (one on
     each side), each confirmed by an independent fixed-parameter Newton solve."""
     from toywalk.model.gait import solve_fixed_point
-    from toywalk.model.walker import Walker
 
     params = load_params(DATA / "params" / "compass-3d.toml")
     branch = continue_branch(params, "hip_width", 0.1, 0.3, max_points=60)
+    assert_points_are_gaits(params, branch)  # both sides of the fold
     folds = [e for e in branch.events if e.kind == "fold"]
     assert len(folds) == 1
     w_fold = folds[0].value
@@ -98,8 +118,13 @@ def test_fold_is_found_and_is_a_fold():
 
 
 def test_continuation_to_a_bound_lands_on_it():
-    """Continuing hip width down to exactly 0 (its lower bound) ends on w = 0, not past it."""
+    """Continuing hip width down to exactly 0 (its lower bound) ends on w = 0, not past it; every
+    point is a gait, and the walker without hip width is unstable there."""
     params = load_params(DATA / "params" / "stable-toy.toml")
     branch = continue_branch(params, "hip_width", params.hip_width, 0.0, max_points=60)
     assert branch.status == "reached"
     assert branch.points[-1].value == 0.0
+    assert_points_are_gaits(params, branch)
+    # docs/gaits.md section 2: hip width helps; without it this walker's gait is unstable.
+    assert_documented(branch.points[0].max_abs_eigenvalue, 0.967, 1e-3, "max |eigenvalue|, w = 34.7 mm")
+    assert_documented(branch.points[-1].max_abs_eigenvalue, 1.25, 0.01, "max |eigenvalue|, w = 0")

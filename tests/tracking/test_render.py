@@ -9,7 +9,9 @@ import pytest
 from numpy.testing import assert_allclose
 from toywalk.model.kinematics import leg_poses
 from toywalk.model.parameters import load_params
+from toywalk.model.simulate import simulate
 from toywalk.model.trajectory import TrajectoryTable, read_trajectory, write_trajectory
+from toywalk.model.walker import Walker
 from toywalk.sysid.cli import main
 from toywalk.tracking.camera import Camera, default_camera, load_camera, project, save_camera
 from toywalk.tracking.markers import default_layout, load_layout, marker_corners
@@ -112,27 +114,87 @@ def test_default_camera_sees_every_marker_on_a_real_walk_frame(compass):
     assert len(ids & {m.id for m in layout.on("ramp")}) >= 4
 
 
-def test_motion_reproduces_the_samples(compass):
+# The stable walker's gait (data/params/stable-toy.toml, public state order) to six digits: near
+# enough for three steps. Its torus feet make the contact's offset from the foot centre turn with
+# the foot, so the rolling rule matters (for the compass walker's spheres it is constant).
+STABLE_GAIT = [0.0466179, -0.514168, -0.00187678, 0.0217185, -0.086945, 4.23107, 0.0813509, 2.39133]
+MIRROR = np.diag([1.0, -1.0, 1.0])
+
+
+def _model_points(walker, steer, lean, pitch_left, pitch_right, stance):
+    """The walker's points relative to the stance contact from the symbolic model (Walker.points:
+    rows C, O1, H1, axle, H2, O2, C2, ...), in the physical frame: the model describes a right-leg
+    stance mirrored (model.md section 4)."""
+    if stance == "L":
+        return walker.points(np.array([steer, lean, pitch_left, pitch_right, 0, 0, 0, 0, 0, 0]))
+    return walker.points(np.array([-steer, -lean, pitch_right, pitch_left, 0, 0, 0, 0, 0, 0])) @ MIRROR
+
+
+def test_motion_places_the_legs_where_the_model_does(compass):
+    """At the samples, the placed hips are the symbolic model's (an implementation independent of
+    model.kinematics, which Motion uses), and so are the feet: a foot centre lies l - r along the
+    leg's b3 axis from its hip, so the rotations' b3 columns are checked too, and the hips' offset
+    (w along b2) checks b2."""
+    walker = Walker(compass)
     table = _walk(compass, switch=0.2)
     motion = Motion(table, compass)
-    for i in (0, 10, 25, 40):
+    sig = table.signals
+    for i in (0, 10, 25, 40):  # both stances: the switch is at sample 20
         t = table.time[i]
         state = motion.state(t)
         stance = str(table.stance[i])
-        poses = leg_poses(compass, table.signals["steer"][i], table.signals["lean"][i],
-                          table.signals["pitch_left"][i], table.signals["pitch_right"][i], stance,
-                          (table.signals["contact_x"][i], table.signals["contact_y"][i]))
-        for leg in "LR":
-            assert_allclose(state.hip[leg], poses.hip[leg], atol=1e-12)
-            assert_allclose(state.rotation[leg], poses.rotation[leg], atol=1e-12)
+        pts = _model_points(walker, sig["steer"][i], sig["lean"][i], sig["pitch_left"][i],
+                            sig["pitch_right"][i], stance)
+        contact = np.array([sig["contact_x"][i], sig["contact_y"][i], 0.0])
+        other = "R" if stance == "L" else "L"
+        # Positions of 0.5 m legs from two implementations: round-off, ~1e-16 m; 1e-12 m.
+        for leg, hip_row, foot_row in ((stance, 2, 1), (other, 4, 5)):
+            assert_allclose(state.hip[leg], contact + pts[hip_row], rtol=0, atol=1e-12)
+            foot = state.hip[leg] - (compass.leg_length - compass.foot_radius) * state.rotation[leg][:, 2]
+            assert_allclose(foot, contact + pts[foot_row], rtol=0, atol=1e-12)
         assert motion.stance_at(t) == stance
-        assert_allclose(motion.contact(state, stance),
-                        [table.signals["contact_x"][i], table.signals["contact_y"][i]], atol=1e-12)
-    # without contact columns the rolling is integrated: still a finite, continuous placement
-    bare = TrajectoryTable(table.time, {k: table.signals[k] for k in ("lean", "steer", "pitch_left",
-                                                                     "pitch_right")}, table.stance)
-    hips = np.array([Motion(bare, compass).state(t).hip["L"] for t in table.time])
-    assert np.all(np.isfinite(hips)) and np.max(np.abs(np.diff(hips, axis=0))) < 0.05
+        assert_allclose(motion.contact(state, stance), contact[:2], rtol=0, atol=1e-12)
+
+
+def test_motion_integrates_the_rolling_as_the_model_does():
+    """Without contact columns Motion integrates the stance foot's rolling (trapezoidal) and, at a
+    heel strike, puts the new contact at the landing foot's lowest point at the last sample before
+    it. On three simulated steps (both stances) with the contact columns dropped: between heel
+    strikes the contact advances as the model's integrated contact does, with the trapezoidal
+    rule's order; across a heel strike it jumps as the rule says, by the model's swing foot's
+    lowest point at the sample before."""
+    params = load_params(DATA / "params" / "stable-toy.toml")
+    walker = Walker(params)
+    errors = {}
+    for rate in (800.0, 1600.0):  # Hz
+        # 64 integration steps per sqrt(l/g): the model's contact between them (cubic Hermite) is
+        # then good to ~1e-12 m, below the rule's error at these rates (16 steps: ~1e-9 m).
+        walk = simulate(params, np.array(STABLE_GAIT), steps=3, sample_rate=rate, steps_per_time_unit=64)
+        assert walk.status == "completed"
+        left, right = walk.pitches()
+        signals = {"lean": walk.lean, "steer": walk.steer, "pitch_left": left, "pitch_right": right}
+        motion = Motion(TrajectoryTable(walk.times, signals, walk.stance), params)
+        assert motion.contact_source == "integrated rolling"
+        placed = np.array([motion.contact(motion.state(t), str(s))
+                           for t, s in zip(walk.times, walk.stance, strict=True)])
+        within, strikes = [], 0
+        for i in range(1, len(walk.times)):
+            advance = placed[i] - placed[i - 1]
+            if walk.stance[i] == walk.stance[i - 1]:
+                within.append(np.max(np.abs(advance - (walk.contact[i] - walk.contact[i - 1]))))
+            else:
+                strikes += 1
+                before = _model_points(walker, walk.steer[i - 1], walk.lean[i - 1], left[i - 1],
+                                       right[i - 1], str(walk.stance[i - 1]))
+                # The same geometry from two implementations: round-off, 1e-12 m.
+                assert_allclose(advance, before[6, :2], rtol=0, atol=1e-12)
+        assert strikes == 2
+        errors[rate] = max(within)
+    # The trapezoidal rule's error per sample interval is O(dt^3): measured 4.0e-10 m at 800 Hz and
+    # 8.0x less at 1600 Hz. A first-order rule (forward Euler on the rolling) has O(dt^2): 7.1e-10 m
+    # and 4x. 1e-9 m bounds the first; a ratio above 6 tells the orders apart.
+    assert errors[800.0] < 1e-9
+    assert errors[800.0] / errors[1600.0] > 6
 
 
 def _small_camera(params):
