@@ -11,8 +11,13 @@ from toywalk.tracking.camera import Camera, load_camera
 
 from .synthetic import TOYWALK, compose, draw_plane
 
+# Tangential terms of a cheap lens, 4-8 of the calibration's standard errors from zero (below), so
+# that a dropped, swapped or sign-flipped term is seen; with the earlier 0.0008, -0.0005 (2.5 and
+# 1.2 standard errors) it would not be.
 TRUE = Camera(width=640, height=480, matrix=np.array([[620.0, 0, 331.5], [0, 618.0, 236.0], [0, 0, 1]]),
-              distortion=np.array([-0.12, 0.06, 0.0008, -0.0005, 0.0]))
+              distortion=np.array([-0.12, 0.06, 0.0025, -0.002, 0.0]))
+#: cv2.calibrateCameraExtended's order of the intrinsics and their standard errors
+NAMES = ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3")
 
 
 def board_views(n=10, noise=1.5, seed=0):
@@ -47,18 +52,37 @@ def views():
 def test_recovers_a_known_camera(views):
     result = calibrate(views)
     k, d = result.camera.matrix, result.camera.distortion
-    # tolerances: a few times the calibration's own standard errors at this noise (about 0.5 px in
-    # fx, fy, cx, cy and 0.005 in k1 for ten views of 24 corners), with room for the renderer
     assert result.rms < 0.3  # px: corners of a rendered board with 1.5 grey levels of noise
-    np.testing.assert_allclose([k[0, 0], k[1, 1]], [620.0, 618.0], rtol=5e-3)
-    np.testing.assert_allclose([k[0, 2], k[1, 2]], [331.5, 236.0], atol=3.0)
-    assert abs(d[0] - TRUE.distortion[0]) < 0.02 and abs(d[1] - TRUE.distortion[1]) < 0.1
     assert result.camera.reprojection_error == pytest.approx(result.rms)
-    # the projection of the test camera and the calibrated one agree across the image
+    sd = result.std_intrinsics
+    # What ten views of 24 corners at 1.5 grey levels resolve: the calibration's standard errors,
+    # measured over board-view seeds 0-7, were fx, fy, cx, cy 0.8-1.4 px, k1 0.013-0.020, p1, p2
+    # 3-6e-4 (bounds: 1.5 times the largest). k2 (SD 0.23-0.46) and k3 (1.1-3.2) are not
+    # resolved: they trade against each other, and the board's corners reach only r = 0.31 of the
+    # normalised field (its corners are at 0.65), where k2's whole effect is 0.1 px. So k2 is
+    # checked against its standard error alone, and its sign is not claimed.
+    assert np.all(sd[:4] < 2.0) and sd[4] < 0.03 and np.all(sd[6:8] < 1e-3), dict(zip(NAMES, sd, strict=True))
+    # Every parameter within 4 of its standard errors of the truth. Measured over seeds 0-7, with
+    # these and the earlier tangential terms: |error / SD| at most 2.6, RMS about 1 (the standard
+    # errors are honest; p2 and cy run about 1 SD low). The earlier fixed tolerances were 1-1.5
+    # standard errors for k1 (0.02) and k2 (0.1) and passed with this seed only: seed 1 misses k1
+    # by 0.034 and k2 by 0.73.
+    true = np.r_[TRUE.matrix[0, 0], TRUE.matrix[1, 1], TRUE.matrix[0, 2], TRUE.matrix[1, 2], TRUE.distortion]
+    z = (np.r_[k[0, 0], k[1, 1], k[0, 2], k[1, 2], d] - true) / sd
+    assert np.all(np.abs(z) < 4), dict(zip(NAMES, np.round(z, 1), strict=True))
+    # the tangential distortion is seen: p1, p2 more than 3 standard errors from zero (6.2 and 5.7
+    # here, 3.9-7.8 over seeds 0-7), so the check above tells them from a dropped term
+    assert np.all(np.abs(d[2:4]) > 3 * sd[6:8]), (d[2:4], sd[6:8])
+    # The projection of the test camera and the calibrated one agree over the field the views
+    # cover (r <= 0.34), once the principal point's offset (resolved to its SD of about 1 px,
+    # checked above) is taken out: measured 0.2-1.0 px over seeds 0-7 (0.54 here). A k1 of the
+    # wrong sign moves points by up to 5.9 px; p1, p2 dropped or swapped by 0.7-1.3 px, which is
+    # why they are checked on their own above.
     pts = np.column_stack([np.random.default_rng(1).uniform(-0.35, 0.35, (50, 2)) * [1, 0.7], np.ones(50)])
     a, _ = cv2.projectPoints(pts, np.zeros(3), np.zeros(3), TRUE.matrix, TRUE.distortion)
     b, _ = cv2.projectPoints(pts, np.zeros(3), np.zeros(3), k, d)
-    assert np.max(np.linalg.norm(a - b, axis=-1)) < 1.5  # px
+    offset = k[:2, 2] - TRUE.matrix[:2, 2]
+    assert np.max(np.linalg.norm(b - a - offset, axis=-1)) < 1.5  # px
 
 
 def test_saved_file_has_board_and_loads(views, tmp_path):

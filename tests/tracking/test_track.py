@@ -53,9 +53,18 @@ def test_angles_recovered(scene):
         assert not np.any(np.isnan(err))
         # targets: lean and pitch 0.3 deg, steer 0.5 deg RMS (at 640x360, half the target size)
         assert np.sqrt(np.mean(err**2)) < (0.5 if name == "steer" else 0.3), name
-        # the stated SDs are honest: errors over SD have an RMS of order one
+        # the stated SDs are honest or, by design, a little large. Above: honest SDs give an RMS of
+        # error over SD within 1 +- 3/sqrt(2n) = 1 +- 0.39 over n = 30 frames (the sampling spread of
+        # an RMS; the frames' z are nearly independent, lag-1 correlation <= 0.2), and the tracker's
+        # one deliberate departure only enlarges SDs. Below: a known, documented miscalibration:
+        # walker_angles_with_sd inflates a frame's covariance by (rms / expected)^2 where its
+        # residual exceeds the pooled noise (here by 1.75 on average, lowering the ratio by
+        # 0.67-0.80), and lean's SD is twice its error (0.50 over 120 frames). Measured over noise
+        # seeds 1-7 and 11: lean 0.40-0.49, steer 0.66-0.78, pitch_left 0.83-0.90, pitch_right
+        # 0.60-0.65; the bound is lean's 0.50 times the sampling floor 0.61. SDs stated half or
+        # twice as large as now fail (pitch_left 1.7, lean 0.21).
         z = err / np.degrees(result.raw_sd[name])
-        assert 0.3 < np.sqrt(np.mean(z**2)) < 3.0, name
+        assert 0.3 < np.sqrt(np.mean(z**2)) < 1.4, (name, np.sqrt(np.mean(z**2)))
     # regions of interest did the work after the first frame
     assert result.counts["full_searches"] == 1
 
