@@ -32,7 +32,8 @@ from .gait import Stability
 from .parameters import N_INPUT, Params, view
 from .walker import Walker
 
-__all__ = ["BVP", "CollocationGait", "bvp", "cycle_jacobian", "initial_guess", "solve_collocation"]
+__all__ = ["BVP", "CollocationGait", "bvp", "contact_travel", "cycle_jacobian", "initial_guess",
+           "solve_collocation", "step_displacements"]
 
 
 @dataclasses.dataclass
@@ -266,6 +267,64 @@ def bvp(planar: bool, n_intervals: int = 30, degree: int = 4, phases: int = 1,
     return BVP(solver=solver, constraints=constraints, n_dyn=nd, n_int=n_intervals,
                     degree=degree, phases=phases, lbg=np.array(lb), ubg=np.array(ub), tau=tau,
                     jac_fun=jac_fun, periodic=periodic)
+
+
+@cache
+def contact_travel(prob: BVP) -> ca.Function:
+    """``(w, p) -> (rolled, jump)``: the stance contact's travel on each mesh interval,
+    ``rolled`` shape (2, phases * n_int) (interval ``k`` of step ``j`` in column ``j * n_int +
+    k``), and the collision's jump from the old contact to the new one at each step's end,
+    ``jump`` shape (2, phases) (m, each step's own mirrored ramp frame; model.md section 4).
+
+    An interval's travel is the integral of the travel rates of the equations of motion (model.md
+    section 3) by the collocation's own Gauss-Legendre quadrature (exact to the collocation's
+    order). Each output depends on one interval's (or one end state's) unknowns only, so the
+    derivatives stay as sparse as the BVP's. A planar system has no sideways component (0).
+    """
+    planar = prob.n_dyn == layout(True).n_dyn
+    lay = layout(planar)
+    nd, d = prob.n_dyn, prob.degree
+    base = build_functions(planar)
+    pad = lay.nx - nd
+    xs, ps = ca.SX.sym("x", nd), ca.SX.sym("p", N_INPUT)
+    full = ca.vertcat(xs, ca.SX.zeros(pad))
+    rate = base["rhs"](full, ps)[nd:]
+    jump = base["collision"](full, ps)[nd:]
+    if pad == 1:
+        rate, jump = ca.vertcat(rate, 0), ca.vertcat(jump, 0)
+    f_rate = ca.Function("travel_rate", [xs, ps], [rate])
+    f_jump = ca.Function("contact_jump", [xs, ps], [jump])
+    b_vec = np.array(ca.collocation_coeff(list(prob.tau))[2]).ravel()
+    xc_s, h_s = ca.SX.sym("xc", nd * d), ca.SX.sym("h")
+    xc_m = ca.reshape(xc_s, nd, d)
+    travel = h_s * sum(float(b_vec[j]) * f_rate(xc_m[:, j], ps) for j in range(d))
+    interval = ca.Function("interval_travel", [xc_s, h_s, ps], [travel]).map(prob.n_int)
+    w = ca.MX.sym("w", prob.phases * prob.phase_size)
+    p = ca.MX.sym("p", N_INPUT)
+    rolled, jumps = [], []
+    for phase in range(prob.phases):
+        pk = _phase_input(p, phase)
+        offset = phase * prob.phase_size
+        block = ca.reshape(w[offset + 1 + nd:offset + prob.phase_size], nd * (d + 1), prob.n_int)
+        rolled.append(interval(block[:nd * d, :], ca.repmat(w[offset] / prob.n_int, 1, prob.n_int),
+                               ca.repmat(pk, 1, prob.n_int)))
+        jumps.append(f_jump(block[nd * d:, prob.n_int - 1], pk))
+    return ca.Function("contact_travel", [w, p], [ca.horzcat(*rolled), ca.horzcat(*jumps)],
+                       ["w", "p"], ["rolled", "jump"])
+
+
+def step_displacements(prob: BVP) -> ca.Function:
+    """``(w, p) -> D``, shape (2, phases): each step's advance of the stance contact, from the
+    contact at its first heel strike to the new one at its end (m, the step's own mirrored ramp
+    frame: a step with the right leg in stance has its sideways component negated; model.md
+    section 4, as :attr:`toywalk.model.walker.Step.contact`): the rolled travel of its mesh
+    intervals plus the collision's jump (:func:`contact_travel`)."""
+    w = ca.MX.sym("w", prob.phases * prob.phase_size)
+    p = ca.MX.sym("p", N_INPUT)
+    rolled, jump = contact_travel(prob)(w, p)
+    per_step = ca.horzcat(*[ca.sum2(rolled[:, j * prob.n_int:(j + 1) * prob.n_int])
+                            for j in range(prob.phases)])
+    return ca.Function("step_displacements", [w, p], [per_step + jump], ["w", "p"], ["D"])
 
 
 def initial_guess(walker: Walker, z0: np.ndarray, prob: BVP, side: int = 1) -> np.ndarray:

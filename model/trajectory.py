@@ -3,9 +3,10 @@
 ``NAME.csv`` has one row per sample with the columns ``time, lean, steer, pitch_left, pitch_right,
 stance`` (s, rad, 'L'/'R'), optional ``*_sd`` standard deviations and optional ``contact_x,
 contact_y`` (m). Missing samples are empty cells. ``NAME.events.csv`` lists heel strikes
-(``time, foot, x, y``, and ``time_sd``, s, where the strike times were measured). ``NAME.json``
-holds the metadata. The three files are written to temporary
-names and renamed into place together, so an interrupted write leaves no partial output.
+(``time, foot, x, y``, and the optional standard deviations ``time_sd`` (s) of a measured strike
+time and ``x_sd, y_sd`` (m) of a measured contact position). ``NAME.json`` holds the metadata.
+The three files are written to temporary names and renamed into place together, so an
+interrupted write leaves no partial output.
 """
 
 from __future__ import annotations
@@ -18,10 +19,13 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["SIGNALS", "TrajectoryTable", "read_trajectory", "trajectory_paths", "write_trajectory"]
+__all__ = ["EVENT_SD_COLUMNS", "SIGNALS", "TrajectoryTable", "read_trajectory", "trajectory_paths",
+           "write_trajectory"]
 
 #: Angle signals of a trajectory file, in column order (rad).
 SIGNALS = ("lean", "steer", "pitch_left", "pitch_right")
+#: Optional standard-deviation columns of the events file: strike time (s), contact position (m).
+EVENT_SD_COLUMNS = ("time_sd", "x_sd", "y_sd")
 
 
 class TrajectoryTable:
@@ -34,7 +38,7 @@ class TrajectoryTable:
         ``lean, steer, pitch_left, pitch_right`` and any ``*_sd`` and ``contact_x, contact_y``.
     stance : ndarray of str, shape (n,)
     events : list of dict
-        ``time, foot, x, y``.
+        ``time, foot, x, y`` and any of :data:`EVENT_SD_COLUMNS`.
     metadata : dict
     """
 
@@ -89,12 +93,12 @@ def write_trajectory(table: TrajectoryTable, out: str | Path) -> tuple[Path, Pat
                 writer.writerow(row)
         with open(tmps[1], "w", newline="") as fh:
             writer = csv.writer(fh)
-            timed = any("time_sd" in ev for ev in table.events)
-            writer.writerow(["time", "foot", "x", "y"] + (["time_sd"] if timed else []))
+            extra = [c for c in EVENT_SD_COLUMNS if any(c in ev for ev in table.events)]
+            writer.writerow(["time", "foot", "x", "y"] + extra)
             for ev in table.events:
                 writer.writerow([_cell(ev["time"]), ev["foot"], _cell(ev.get("x", math.nan)),
                                  _cell(ev.get("y", math.nan))]
-                                + ([_cell(ev.get("time_sd", math.nan))] if timed else []))
+                                + [_cell(ev.get(c, math.nan)) for c in extra])
         with open(tmps[2], "w") as fh:
             json.dump(table.metadata, fh, indent=2, sort_keys=True, default=_json_default)
             fh.write("\n")
@@ -157,7 +161,8 @@ def read_trajectory(path: str | Path) -> TrajectoryTable:
                 events.append({"time": float(row["time"]), "foot": row["foot"],
                                "x": float(row["x"]) if row.get("x") else math.nan,
                                "y": float(row["y"]) if row.get("y") else math.nan})
-                if "time_sd" in row:
-                    events[-1]["time_sd"] = float(row["time_sd"]) if row["time_sd"] else math.nan
+                for c in EVENT_SD_COLUMNS:
+                    if c in row:
+                        events[-1][c] = float(row[c]) if row[c] else math.nan
     metadata = json.loads(meta_path.read_text()) if meta_path.exists() else {}
     return TrajectoryTable(time, signals, stance, events, metadata)

@@ -250,7 +250,8 @@ def _parse_effects(items) -> dict:
     return out
 
 
-def _simulate_to_file(params, steps: int, out: Path, noise: float, seed, source: str) -> dict:
+def _simulate_to_file(params, steps: int, out: Path, noise: float, seed, source: str,
+                      position_noise: float = 0.0) -> dict:
     from toywalk.model.simulate import simulate
     from toywalk.model.trajectory import TrajectoryTable, write_trajectory
 
@@ -273,12 +274,18 @@ def _simulate_to_file(params, steps: int, out: Path, noise: float, seed, source:
                    "start": "gait fixed point", "planar": gait.planar},
         "units": {"time": "s", "angles": "rad", "contact": "m"},
         "noise_sd": noise,
+        "position_noise_sd": position_noise,
         "timestamps": "exact simulation times, uniform sampling",
         "status": traj.status, "message": traj.message,
         "scuffs": traj.scuffs, "min_clearance_m": traj.min_clearance,
         "software": _version(),
     }
     events = [{"time": e.time, "foot": e.foot, "x": e.x, "y": e.y} for e in traj.events]
+    if position_noise > 0:  # heel-strike positions as a tracker would measure them
+        for event in events:
+            event["x"] += rng.normal(0.0, position_noise)
+            event["y"] += rng.normal(0.0, position_noise)
+            event["x_sd"] = event["y_sd"] = position_noise
     table = TrajectoryTable(traj.times, signals, traj.stance, events, metadata)
     write_trajectory(table, out)
     return {"status": traj.status, "message": traj.message, "samples": len(traj.times),
@@ -300,8 +307,12 @@ def cmd_simulate(args) -> int:
         raise CommandError(f"--steps must be >= 1, got {args.steps}")
     if not (args.noise >= 0 and math.isfinite(args.noise)):
         raise CommandError(f"--noise must be a finite standard deviation >= 0 (rad), got {args.noise}")
+    if not (args.position_noise >= 0 and math.isfinite(args.position_noise)):
+        raise CommandError("--position-noise must be a finite standard deviation >= 0 (m), got "
+                           f"{args.position_noise}")
     out = output_path(args.out, (".csv",))
-    info = _simulate_to_file(params, args.steps, out, args.noise, args.seed, str(args.params))
+    info = _simulate_to_file(params, args.steps, out, args.noise, args.seed, str(args.params),
+                             args.position_noise)
     print(f"{info['status']}: {info['message']}; {info['samples']} samples, "
           f"{info['heel_strikes']} heel strikes -> {out}")
     return 0 if info["status"] == "completed" else 1
@@ -374,6 +385,7 @@ _COMMAND_MODULES = (
     "toywalk.sysid.cmd_track",
     "toywalk.sysid.cmd_fit",
     "toywalk.sysid.cmd_sample",
+    "toywalk.sysid.cmd_diagnose",
 )
 
 
@@ -405,6 +417,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--effect", action="append", metavar="NAME=VALUE",
                    help="set an effect's strength (repeatable; `toywalk effects` lists them)")
     p.add_argument("--noise", type=float, default=0.0, help="measurement noise SD added to angles (rad)")
+    p.add_argument("--position-noise", type=float, default=0.0,
+                   help="measurement noise SD added to the heel strikes' contact positions (m; "
+                        "default 0: exact positions)")
     p.add_argument("--seed", type=int, default=None)
     p.add_argument("--out", required=True, help="trajectory file NAME.csv")
     p.set_defaults(func=cmd_simulate)

@@ -53,7 +53,7 @@ def cmd_fit(args) -> int:
     from toywalk.model.files import atomic_write_json
     from toywalk.model.trajectory import read_trajectory
     from toywalk.sysid.cli import CommandError, _load, _version, output_path
-    from toywalk.sysid.fit import FitError, fit, periodicity_test
+    from toywalk.sysid.fit import CONTACT_KEYS, FitError, fit, periodicity_test
 
     out = output_path(args.out, (".json",))
     if args.intervals is not None and args.intervals < 4:
@@ -108,7 +108,10 @@ def cmd_fit(args) -> int:
         print(f"fitted gait: {gait['map']} map, max |eigenvalue| {gait['max_abs_eigenvalue']:.4g} "
               f"({'stable' if gait['stable'] else 'unstable'})")
     rms = ", ".join(f"{k} {math.degrees(v):.3g} deg" for k, v in result.residual_rms.items()
-                    if k not in ("step_duration", "strike_time"))
+                    if k not in ("step_duration", "strike_time", *CONTACT_KEYS))
+    if CONTACT_KEYS[0] in result.residual_rms:
+        rms += ", contact positions " + ", ".join(
+            f"{k.removeprefix('contact_')} {1e3 * result.residual_rms[k]:.3g} mm" for k in CONTACT_KEYS)
     timing = f"; step duration {1e3 * result.residual_rms['step_duration']:.3g} ms"
     if "strike_time" in result.residual_rms:
         timing += f", heel strikes {1e3 * result.residual_rms['strike_time']:.3g} ms"

@@ -6,11 +6,15 @@ strengths included) and the nuisance offsets ``o`` (:data:`toywalk.sysid.measure
 The problem is
 
     minimise   1/2 sum_i ((A w + B o - y)_i / sigma_i)^2 + 1/2 sum_k ((T_k(w) - d_k) / sigma_k)^2
+               + 1/2 sum_j ((c_j(w, theta, o) - p_j) / sigma_j)^2
     subject to g(w, theta) = 0    (collocation, guard, periodicity with the collision)
                theta within its physical bounds
 
-with ``A``, ``B`` the measurement model's linear operators, ``y`` the measured angles and ``d`` the
-measured step durations (:mod:`toywalk.sysid.measurement`). Because the gait is a constraint, not
+with ``A``, ``B`` the measurement model's linear operators, ``y`` the measured angles, ``d`` the
+measured step durations (or strike times), and, where the events file has them, ``p`` the measured
+contact positions at heel strikes and ``c`` the model's (each step's advance, rolled and jumped at
+the collision, :func:`toywalk.model.collocation.step_displacements`, from an unknown origin;
+:mod:`toywalk.sysid.measurement`). Because the gait is a constraint, not
 a forward simulation, the fit works for gaits too unstable to simulate (Biegler, *Nonlinear
 Programming*, SIAM 2010, ch. 10; the simultaneous approach of opty, Moore & van den Bogert 2018).
 
@@ -44,7 +48,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 from scipy.stats import chi2 as chi2_dist
-from toywalk.model.collocation import BVP, bvp, cycle_jacobian, initial_guess
+from toywalk.model.collocation import BVP, bvp, contact_travel, cycle_jacobian, initial_guess
 from toywalk.model.effects import EFFECTS
 from toywalk.model.gait import GaitNotFound, _lateral_singular, find_gait, solve_fixed_point
 from toywalk.model.parameters import INPUT_NAMES, PARAMETER_NAMES, ParameterError, Params
@@ -53,18 +57,21 @@ from toywalk.model.walker import STATE_NAMES, Walker, is_planar_symmetric
 
 from .measurement import (
     OFFSETS,
+    POSITION_NUISANCES,
     MeasurementError,
     Observations,
+    Path,
     Timing,
     first_side,
     model_steps,
     observations,
     offsets_design,
+    path,
     timing,
 )
 
-__all__ = ["MODELS", "FitError", "FitResult", "PeriodicityTest", "fit", "fit_bounds", "gait_period",
-           "parameter_bounds", "periodicity_test"]
+__all__ = ["CONTACT_KEYS", "MODELS", "FitError", "FitResult", "PeriodicityTest", "fit", "fit_bounds",
+           "gait_period", "parameter_bounds", "periodicity_test", "score_tests"]
 
 #: The models of a walk :func:`fit` knows.
 MODELS = ("periodic", "transient")
@@ -77,6 +84,13 @@ PERIODICITY_ALPHA = 0.01
 #: Noise SD (rad) assumed for the first pass when the file gives none; the second pass uses the
 #: per-signal RMS of the first pass's residuals.
 _FIRST_PASS_SD = 0.01
+#: The same for contact positions (m): a millimetre, a tracker's error on a toy filmed whole.
+_FIRST_PASS_CONTACT_SD = 1e-3
+#: Floor of an estimated contact-position SD (m): 10 micrometres, finer than any camera resolves
+#: a walking toy (a simulated walk's exact positions would otherwise get weights of 1e16).
+_CONTACT_SD_FLOOR = 1e-5
+#: Keys of the contact positions' SDs (m) in ``noise_sd`` and ``residual_rms``.
+CONTACT_KEYS = ("contact_x", "contact_y")
 #: Phase bins of the residual summary.
 _PHASE_BINS = 10
 #: Identifiability: a direction of the free parameters (scaled to unit column norms) whose
@@ -107,13 +121,16 @@ class FitResult:
     estimates, std : dict of str to float
         Estimates and standard errors of the free parameters and the nuisance offsets.
     covariance, correlation : ndarray, shape (n, n)
-        Over ``free``, then :data:`OFFSETS` and ``time_offset`` (s: the model's first heel strike
-        against the measured one) (``names``).
+        Over ``free``, then :data:`OFFSETS`, :data:`POSITION_NUISANCES` (m: the first measured
+        contact, where the walk has contact positions) and ``time_offset`` (s: the model's first
+        heel strike against the measured one) (``names``).
     names : list of str
     noise_sd : dict of str to float
         Noise SD per signal (rad) used in the final pass; ``noise_source`` says where it came from.
+        With contact positions also :data:`CONTACT_KEYS` (m), from ``contact_source``.
     residual_rms : dict of str to float
-        RMS residual per signal (rad), and of the step durations (s).
+        RMS residual per signal (rad), of the step durations and heel strikes (s), and of the
+        contact positions along and across the ramp (m, :data:`CONTACT_KEYS`).
     residual_rms_by_phase : dict of str to list of float
         RMS residual per signal in ``_PHASE_BINS`` bins of the step phase.
     chi2 : float
@@ -136,6 +153,16 @@ class FitResult:
     initial_state : dict
         Transient model: the fitted state just after the first measured heel strike (public names,
         physical description, its stance leg ``stance``); empty for the periodic model.
+    contact_source : str
+        Where the contact positions' SDs came from ('file', 'given', 'estimated from
+        residuals'), or 'none' when the walk has no contact positions.
+    residuals : ndarray, shape (n_obs,)
+        Model minus measurement of every angle observation (rad), in the order of
+        :class:`toywalk.sysid.measurement.Observations`.
+    model_durations : ndarray, shape (n_steps,)
+        The model's duration of each measured step (s).
+    options : dict
+        The fit's set-up (model, offsets, mesh, strikes, iteration cap), to repeat it.
     """
 
     free: list
@@ -163,6 +190,11 @@ class FitResult:
     initial_state: dict = dataclasses.field(default_factory=dict)
     sigma: np.ndarray = dataclasses.field(repr=False, default=None)
     start_dof: int = 0
+    contact_source: str = "none"
+    residuals: np.ndarray = dataclasses.field(repr=False, default=None)
+    model_durations: np.ndarray = dataclasses.field(repr=False, default=None)
+    options: dict = dataclasses.field(default_factory=dict)
+    n_w: int = dataclasses.field(repr=False, default=0)
 
     def to_json(self) -> dict:
         """JSON-ready dictionary (pipeline.md's fit file: estimates, std, covariance, ...)."""
@@ -173,13 +205,15 @@ class FitResult:
             "names": self.names, "covariance": self.covariance.tolist(),
             "correlation": self.correlation.tolist(),
             "noise_sd": self.noise_sd, "noise_source": self.noise_source,
+            "contact_source": self.contact_source,
             "residual_rms": self.residual_rms, "residual_rms_by_phase": self.residual_rms_by_phase,
             "chi2": self.chi2, "n_residuals": self.n_residuals,
             "reduced_chi2": self.chi2 / max(self.n_residuals - len(self.names) - self.start_dof, 1),
             "gait": self.gait, "warnings": self.warnings, "jacobian_check": self.jacobian_check,
             "priors": {n: list(v) for n, v in self.priors.items()},
-            "params": self.params.to_dict(),
-            "units": {"angles": "rad", "durations": "s", "parameters": "SI (pipeline.md)"},
+            "options": self.options, "params": self.params.to_dict(),
+            "units": {"angles": "rad", "durations": "s", "contact positions": "m",
+                      "parameters": "SI (pipeline.md)"},
         }
 
 
@@ -286,6 +320,27 @@ def _equality_jacobians(prob: BVP) -> ca.Function:
     return ca.Function("bvp_jac", [w, p], [ca.jacobian(g, w), ca.jacobian(g, p)])
 
 
+@cache
+def _travel_jacobians(prob: BVP) -> ca.Function:
+    """``(w, p) -> (d rolled/dw, d rolled/dp, d jump/dw, d jump/dp)`` of
+    :func:`toywalk.model.collocation.contact_travel`'s outputs (column-major, as the fit's
+    unknowns)."""
+    w = ca.MX.sym("w", prob.phases * prob.phase_size)
+    p = ca.MX.sym("p", len(INPUT_NAMES))
+    rolled, jump = (ca.vec(m) for m in contact_travel(prob)(w, p))
+    return ca.Function("travel_jac", [w, p], [ca.jacobian(rolled, w), ca.jacobian(rolled, p),
+                                              ca.jacobian(jump, w), ca.jacobian(jump, p)])
+
+
+@cache
+def _interval_sums(prob: BVP) -> sp.csr_matrix:
+    """Sums each step's interval travels (column-major (2, phases * n_int)) into its
+    displacement (column-major (2, phases)), shape (2 phases, 2 phases n_int)."""
+    rows = np.repeat(np.arange(2 * prob.phases).reshape(prob.phases, 2), prob.n_int, axis=0).ravel()
+    return sp.csr_matrix((np.ones(len(rows)), (rows, np.arange(len(rows)))),
+                         shape=(2 * prob.phases, 2 * prob.phases * prob.n_int))
+
+
 def _sparse(m: ca.DM) -> sp.csc_matrix:
     col_ptr, row_idx = (np.array(v) for v in m.sparsity().get_ccs())
     return sp.csc_matrix((np.array(m.nonzeros()), row_idx, col_ptr), shape=m.shape)
@@ -295,7 +350,8 @@ def _sparse(m: ca.DM) -> sp.csc_matrix:
 def fit(table: TrajectoryTable, params: Params, free, *, model: str = "periodic",
         offsets: bool = True, n_intervals: int | None = None, degree: int | None = None, z_guess=None,
         max_iter: int = 500, check_jacobian: bool = True, priors: dict | None = None,
-        noise_sd: dict | None = None, strikes: str = "model") -> FitResult:
+        noise_sd: dict | None = None, strikes: str = "model",
+        warm: FitResult | None = None) -> FitResult:
     """Fit ``free`` parameters of ``params`` to the measured walk ``table``.
 
     Parameters
@@ -336,12 +392,43 @@ def fit(table: TrajectoryTable, params: Params, free, *, model: str = "periodic"
         :mod:`toywalk.sysid.measurement`), or between the measured strikes taken as exact, with the
         step durations as data (robust to step-to-step variability the model does not have, but
         biased by strike-time errors: 4 to 12 SE through tracked video).
+    warm : FitResult, optional
+        A fit of the same walk and model to continue from (its gait, nuisances and free
+        parameters; ``params`` should hold its estimates), with more free parameters perhaps:
+        the solver starts there and skips the first, aligned stage.
 
     Raises
     ------
     FitError
         Bad names, unusable measurements or no starting gait (the message says which).
     """
+    problem, w0 = _setup(table, params, free, model=model, offsets=offsets, n_intervals=n_intervals,
+                         degree=degree, z_guess=z_guess, max_iter=max_iter,
+                         check_jacobian=check_jacobian, priors=priors, strikes=strikes)
+    obs, pth = problem.obs, problem.path
+    sigma, source, passes = obs.sd.copy(), "file", 1
+    if noise_sd is not None:
+        sigma, source = _sigma_from(noise_sd, obs), "given"
+    elif not obs.sd_known:
+        sigma, source, passes = np.full(len(obs.value), _FIRST_PASS_SD), "estimated from residuals", 2
+    sigma_c, source_c = _contact_sigma(pth, noise_sd)
+    passes = 2 if source_c == "estimated from residuals" else passes
+    x0 = problem.start(w0) if warm is None else _continued(problem, w0, warm)
+    for k in range(passes):
+        sol, stats = problem.solve(x0, np.r_[sigma, sigma_c], aligned_first=warm is None)
+        x0 = sol
+        if k < passes - 1 or source == "estimated from residuals":
+            if source == "estimated from residuals":
+                sigma = _sigma_from(problem.residual_rms(sol), obs)
+            if source_c == "estimated from residuals":
+                sigma_c = _contact_sigma(pth, problem.contact_rms(sol, floor=_CONTACT_SD_FLOOR))[0]
+    return problem.result(sol, stats, np.r_[sigma, sigma_c], source, source_c)
+
+
+def _setup(table: TrajectoryTable, params: Params, free, *, model, offsets, n_intervals, degree,
+           z_guess, max_iter, check_jacobian, priors, strikes, w_start=None):
+    """The fit's NLP (:class:`_Problem`) and a start ``w0`` on the BVP (``w_start`` when given,
+    else the starting gait solved on the BVP)."""
     if not isinstance(params, Params):
         raise TypeError(f"params must be a Params, got {type(params).__name__}")
     free = _check_free(params, free)
@@ -371,22 +458,30 @@ def fit(table: TrajectoryTable, params: Params, free, *, model: str = "periodic"
     tm = timing(obs, prob, planar)
     b_op = offsets_design(obs) if offsets else np.zeros((len(obs.value), len(OFFSETS)))
     model_step = model_steps(obs, prob.phases, prob.periodic)
-    w0 = _feasible_start(prob, walker, z_first, side)
+    w0 = _feasible_start(prob, walker, z_first, side) if w_start is None else np.asarray(w_start, float)
     priors = _check_priors(priors or {}, free)
+    pth = path(obs, prob.phases, prob.periodic)
     problem = _Problem(prob, walker, free, obs, tm, b_op, model_step, offsets, max_iter,
-                       check_jacobian, priors, side, strikes)
-    sigma, source, passes = obs.sd.copy(), "file", 1
-    if noise_sd is not None:
-        sigma, source = _sigma_from(noise_sd, obs), "given"
-    elif not obs.sd_known:
-        sigma, source, passes = np.full(len(obs.value), _FIRST_PASS_SD), "estimated from residuals", 2
-    x0 = np.concatenate([w0, np.zeros(len(free)), np.zeros(len(OFFSETS)), [0.0]])
-    for k in range(passes):
-        sol, stats = problem.solve(x0, sigma)
-        x0 = sol
-        if k < passes - 1 or source == "estimated from residuals":
-            sigma = _sigma_from(problem.residual_rms(sol), obs)
-    return problem.result(sol, stats, sigma, source)
+                       check_jacobian, priors, side, strikes, pth)
+    problem.options = {"model": model, "offsets": offsets, "n_intervals": n_intervals,
+                       "degree": degree, "strikes": strikes, "max_iter": max_iter}
+    return problem, w0
+
+
+def _contact_sigma(pth: Path, noise_sd: dict | None) -> tuple[np.ndarray, str]:
+    """The contact positions' SDs, x rows then y rows (shape (2 n_pos,), m), and their source:
+    ``noise_sd``'s :data:`CONTACT_KEYS` when it has them, else the events file's ``x_sd, y_sd``,
+    else a first guess to be replaced by the residuals' RMS ("estimated from residuals")."""
+    if not pth.n:
+        return np.zeros(0), "none"
+    if noise_sd is not None and all(k in noise_sd for k in CONTACT_KEYS):
+        values = [noise_sd[k] for k in CONTACT_KEYS]
+        if not all(isinstance(v, (int, float)) and math.isfinite(v) and v > 0 for v in values):
+            raise FitError(f"noise_sd needs positive SDs (m) for {', '.join(CONTACT_KEYS)}, got {values}")
+        return np.repeat(np.asarray(values, float), pth.n), "given"
+    if np.all(np.isfinite(pth.sd)):
+        return np.r_[pth.sd[:, 0], pth.sd[:, 1]], "file"
+    return np.full(2 * pth.n, _FIRST_PASS_CONTACT_SD), "estimated from residuals"
 
 
 def _sigma_from(noise_sd: dict, obs: Observations) -> np.ndarray:
@@ -416,7 +511,7 @@ class _Problem:
 
     def __init__(self, prob: BVP, walker: Walker, free, obs: Observations, tm: Timing, b_op,
                  model_step, offsets: bool, max_iter: int, check_jacobian: bool, priors: dict,
-                 side: int, strikes: str):
+                 side: int, strikes: str, pth: Path):
         params = walker.params
         self.prob, self.planar, self.params, self.free, self.obs = prob, walker.planar, params, free, obs
         self.walker, self.side = walker, side
@@ -431,23 +526,40 @@ class _Problem:
         self.prior_sd = np.array([priors[n][1] for n in priors])
         self.tm, self.b_op, self.model_step = tm, b_op, model_step
         self.stage = 1.0 if strikes == "model" else 0.0
-        self.offsets = offsets
+        self.offsets, self.path = offsets, pth
         n_w = prob.phases * prob.phase_size
-        n_f, n_o = len(free), len(OFFSETS)
-        self.n_w = n_w
+        n_f, n_o, n_c = len(free), len(OFFSETS), len(POSITION_NUISANCES)
+        self.n_w, self.n_obs = n_w, len(obs.value)
+        self.options: dict = {}
+        # The contacts' origin is in units of the leg length (IPOPT sees order one).
+        self.c_scale = params.leg_length
         # The time offset's unknown is in units of the strikes' typical SD (IPOPT sees order one).
         self.t_scale = float(np.median(obs.strike_sd))
         self.theta0 = np.array([params.get(n) for n in free])
         self.scale = np.array([_scale(params, n) for n in free])
         self.p0 = params.input_vector(side)
         self.index = [INPUT_NAMES.index(n) for n in free]
-        x = ca.MX.sym("x", n_w + n_f + n_o + 1)
+        # With contact positions, each model step's displacement (2 per step) and the contact's
+        # travel on each mesh interval (2 per interval) are unknowns of their own (in leg
+        # lengths), tied to the gait by equalities (measurement.Path, collocation.contact_travel):
+        # the data term depends on the few displacements, each equality on one interval, and the
+        # derivatives keep the BVP's sparsity. Written directly in w, the data term coupled every
+        # state of a step: 10 times slower (measured: 274 s vs 28 s for a 12-step fit), and the
+        # displacement unknowns alone left the constraint Jacobian with dense rows (45 s).
+        n_d = 2 * prob.phases if pth.n else 0
+        n_t = n_d * prob.n_int
+        self.lift_cols = np.arange(n_w + n_f + n_o + n_c, n_w + n_f + n_o + n_c + n_d + n_t)
+        x = ca.MX.sym("x", n_w + n_f + n_o + n_c + n_d + n_t + 1)
         w, delta, off = x[:n_w], x[n_w:n_w + n_f], x[n_w + n_f:n_w + n_f + n_o]
+        origin = x[n_w + n_f + n_o:n_w + n_f + n_o + n_c] * self.c_scale
+        disp = x[self.lift_cols[:n_d]] if n_d else ca.MX(0, 1)
+        trav = x[self.lift_cols[n_d:]] if n_d else ca.MX(0, 1)
         time_offset = x[-1] * self.t_scale
         p = ca.MX(ca.DM(self.p0))
         for j, k in enumerate(self.index):
             p[k] = self.p0[k] + self.scale[j] * delta[j]
-        inv_sd = ca.MX.sym("inv_sd", len(obs.value))
+        inv_sd_all = ca.MX.sym("inv_sd", self.n_obs + 2 * pth.n)
+        inv_sd, inv_sd_c = inv_sd_all[:self.n_obs], inv_sd_all[self.n_obs:]
         durations = ca.vertcat(*[w[prob.duration_index(j)] for j in range(prob.phases)])
         model = tm.values(w, durations, time_offset) + ca.mtimes(ca.DM(b_op), off)
         r_ang = (model - ca.DM(obs.value)) * inv_sd
@@ -471,8 +583,17 @@ class _Problem:
         r_dur_aligned = (per_step - ca.DM(obs.durations)) / ca.DM(obs.duration_sd)
         stage = ca.MX.sym("stage")  # 0: aligned on the measured strikes, 1: the model's strikes
         self.angles_fn = ca.Function("angles", [x, stage], [(1 - stage) * model_aligned + stage * model])
+        # Contact positions at the measured strikes (measurement.Path): the same in both stages.
+        if n_d:
+            along, across = pth.relative(ca.reshape(disp, 2, prob.phases) * self.c_scale)
+            yaw = off[1] if offsets else 0
+            contacts = ca.vertcat(origin[0] + along - yaw * across, origin[1] + across + yaw * along)
+        else:
+            contacts = ca.MX(0, 1)
+        self.contacts_fn = ca.Function("contacts", [x], [contacts])
+        r_contact = (contacts - ca.DM(np.r_[pth.value[:, 0], pth.value[:, 1]])) * inv_sd_c
         residuals = ca.vertcat((1 - stage) * r_ang_aligned + stage * r_ang,
-                               (1 - stage) * r_dur_aligned, stage * r_dur, r_prior)
+                               (1 - stage) * r_dur_aligned, stage * r_dur, r_prior, r_contact)
         f = 0.5 * ca.sumsqr(residuals)
         g = prob.constraints(w, p)
         # A foot's sideways radius never exceeds its fore-aft one (model.md section 2): a bound
@@ -482,10 +603,16 @@ class _Problem:
             k_r, k_rho = free.index("foot_radius"), free.index("foot_lateral_radius")
             g = ca.vertcat(g, theta[k_r] - theta[k_rho])
             self.lbg, self.ubg = np.r_[prob.lbg, 0.0], np.r_[prob.ubg, np.inf]
-        self.residuals_fn = ca.Function("residuals", [x, inv_sd, stage], [residuals])
-        self.residuals_jac = ca.Function("residuals_jac", [x, inv_sd, stage],
+        if n_d:
+            rolled, jump = contact_travel(prob)(w, p)
+            summed = ca.DM(sp.csc_matrix(_interval_sums(prob)))
+            g = ca.vertcat(g, trav - ca.vec(rolled) / self.c_scale,
+                           disp - ca.mtimes(summed, trav) - ca.vec(jump) / self.c_scale)
+            self.lbg, self.ubg = np.r_[self.lbg, np.zeros(n_d + n_t)], np.r_[self.ubg, np.zeros(n_d + n_t)]
+        self.residuals_fn = ca.Function("residuals", [x, inv_sd_all, stage], [residuals])
+        self.residuals_jac = ca.Function("residuals_jac", [x, inv_sd_all, stage],
                                          [ca.jacobian(residuals, x)])
-        self.solver = ca.nlpsol("fit", "ipopt", {"x": x, "p": ca.vertcat(inv_sd, stage), "f": f,
+        self.solver = ca.nlpsol("fit", "ipopt", {"x": x, "p": ca.vertcat(inv_sd_all, stage), "f": f,
                                                  "g": g}, {
             "ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
             "ipopt.tol": 1e-10, "ipopt.max_iter": max_iter,
@@ -497,9 +624,25 @@ class _Problem:
             high[n_w + j] = (hi - self.theta0[j]) / self.scale[j]
         if not offsets:
             low[n_w + n_f:n_w + n_f + n_o] = high[n_w + n_f:n_w + n_f + n_o] = 0.0
+        if not pth.n:
+            low[n_w + n_f + n_o:n_w + n_f + n_o + n_c] = high[n_w + n_f + n_o:n_w + n_f + n_o + n_c] = 0.0
         self.lbx, self.ubx = low, high
         self.theta_low = self.theta0 + self.scale * low[n_w:n_w + n_f]
         self.theta_high = self.theta0 + self.scale * high[n_w:n_w + n_f]
+
+    def lifted(self, w: np.ndarray, theta: np.ndarray) -> np.ndarray:
+        """The displacement and interval-travel unknowns (leg lengths) of the gait ``w`` at
+        ``theta``."""
+        if not len(self.lift_cols):
+            return np.zeros(0)
+        rolled, jump = (np.array(m).ravel(order="F")
+                        for m in contact_travel(self.prob)(w, self.p_full(theta)))
+        return np.r_[_interval_sums(self.prob) @ rolled + jump, rolled] / self.c_scale
+
+    def start(self, w0: np.ndarray) -> np.ndarray:
+        """The NLP's start from a gait ``w0`` at the starting parameters (nuisances at zero)."""
+        return np.concatenate([w0, np.zeros(len(self.free) + len(OFFSETS) + len(POSITION_NUISANCES)),
+                               self.lifted(w0, self.theta0), [0.0]])
 
     def theta(self, x: np.ndarray) -> np.ndarray:
         """The free parameters, clipped into their bounds (IPOPT may end a hair outside one)."""
@@ -515,14 +658,17 @@ class _Problem:
         p[self.index] = theta
         return p
 
-    def solve(self, x0: np.ndarray, sigma: np.ndarray):
+    def solve(self, x0: np.ndarray, sigma: np.ndarray, aligned_first: bool = True):
         """Aligned on the measured strikes (time offset held at 0), then, unless the fit stays
-        there (``strikes="measured"``), on the model's strikes from that solution."""
-        lbx, ubx = self.lbx.copy(), self.ubx.copy()
-        lbx[-1] = ubx[-1] = 0.0
-        sol = self.solver(x0=x0, p=np.r_[1.0 / sigma, 0.0], lbx=lbx, ubx=ubx, lbg=self.lbg,
-                          ubg=self.ubg)
-        if self.stage == 1.0 and self.solver.stats()["success"]:
+        there (``strikes="measured"``), on the model's strikes from that solution; from a start
+        already near the model's strikes (``aligned_first`` False), the second stage only."""
+        sol = {"x": x0}
+        if aligned_first or self.stage == 0.0:
+            lbx, ubx = self.lbx.copy(), self.ubx.copy()
+            lbx[-1] = ubx[-1] = 0.0
+            sol = self.solver(x0=x0, p=np.r_[1.0 / sigma, 0.0], lbx=lbx, ubx=ubx, lbg=self.lbg,
+                              ubg=self.ubg)
+        if self.stage == 1.0 and (not aligned_first or self.solver.stats()["success"]):
             sol = self.solver(x0=np.array(sol["x"]).ravel(), p=np.r_[1.0 / sigma, 1.0],
                               lbx=self.lbx, ubx=self.ubx, lbg=self.lbg, ubg=self.ubg)
         return np.array(sol["x"]).ravel(), self.solver.stats()
@@ -534,6 +680,21 @@ class _Problem:
     def offsets_of(self, x: np.ndarray) -> np.ndarray:
         n = self.n_w + len(self.free)
         return x[n:n + len(OFFSETS)]
+
+    def origin_of(self, x: np.ndarray) -> np.ndarray:
+        """The measured contacts' origin (m): where the model puts the first measured strike's."""
+        n = self.n_w + len(self.free) + len(OFFSETS)
+        return x[n:n + len(POSITION_NUISANCES)] * self.c_scale
+
+    def contact_residuals(self, x: np.ndarray) -> np.ndarray:
+        """Model minus measurement of the contact positions, shape (n_pos, 2) (m)."""
+        model = np.array(self.contacts_fn(x)).ravel().reshape(2, -1).T
+        return model - self.path.value
+
+    def contact_rms(self, x: np.ndarray, floor: float = 0.0) -> dict:
+        """RMS of the contact-position residuals along and across the ramp (m), at least ``floor``."""
+        res = self.contact_residuals(x)
+        return {k: max(float(np.sqrt(np.mean(res[:, i] ** 2))), floor) for i, k in enumerate(CONTACT_KEYS)}
 
     def residual_rms(self, x: np.ndarray) -> dict:
         """RMS of the angle residuals per signal (rad)."""
@@ -552,8 +713,9 @@ class _Problem:
     # ----------------------------------------------------------------------------- result
     def jacobian(self, x: np.ndarray, sigma: np.ndarray) -> np.ndarray:
         """Total derivative of the whitened residuals in (theta, the free start of a transient,
-        offsets, time offset) through the BVP: columns ``free``, :meth:`start_names`,
-        :data:`OFFSETS` (when fitted), ``time_offset``."""
+        offsets, the contacts' origin, time offset) through the BVP: columns ``free``,
+        :meth:`start_names`, :data:`OFFSETS` (when fitted), :data:`POSITION_NUISANCES` (when
+        the walk has contact positions), ``time_offset``."""
         prob = self.prob
         w = x[:self.n_w]
         g_w, g_p = (_sparse(m) for m in _equality_jacobians(prob)(w, self.p_full(self.theta(x))))
@@ -574,16 +736,27 @@ class _Problem:
         # The residuals' own derivatives (CasADi), chained through the BVP: w moves with theta
         # and the free start, and theta, offsets and time offset also enter directly.
         jr = _sparse(self.residuals_jac(x, 1.0 / sigma, self.stage)).tocsc()
-        n_o = len(OFFSETS)
+        n_o, n_c = len(OFFSETS), len(POSITION_NUISANCES)
         j_model = jr[:, :self.n_w] @ dw
         j_model[:, :n_f] += jr[:, self.n_w:self.n_w + n_f].toarray() / self.scale
+        if len(self.lift_cols):  # the lifted unknowns follow w and theta through their equalities
+            jac = _travel_jacobians(prob)(w, self.p_full(self.theta(x)))
+            r_w, r_p, j_w, j_p = (_sparse(m) for m in jac)
+            sums = _interval_sums(prob)
+            d_lift = np.vstack([sums @ (r_w @ dw) + j_w @ dw, r_w @ dw])
+            d_lift[:, :n_f] += np.vstack([(sums @ r_p + j_p)[:, self.index].toarray(),
+                                          r_p[:, self.index].toarray()])
+            j_model += jr[:, self.lift_cols] @ d_lift / self.c_scale
         j_off = jr[:, self.n_w + n_f:self.n_w + n_f + n_o].toarray()
+        j_origin = jr[:, self.n_w + n_f + n_o:self.n_w + n_f + n_o + n_c].toarray() / self.c_scale
         j_time = jr[:, -1:].toarray() / self.t_scale
         if not self.offsets:
             j_off = j_off[:, :0]
+        if not self.path.n:
+            j_origin = j_origin[:, :0]
         if self.stage == 0.0:
             j_time = j_time[:, :0]
-        return np.hstack([j_model, j_off, j_time])
+        return np.hstack([j_model, j_off, j_origin, j_time])
 
     def fd_check(self, x: np.ndarray, sigma: np.ndarray, jac: np.ndarray) -> dict:
         """Central differences of the residuals in each free parameter, re-solving the BVP (with a
@@ -604,6 +777,7 @@ class _Problem:
                     break
                 xs = x.copy()
                 xs[:self.n_w] = np.array(sol["x"]).ravel()
+                xs[self.lift_cols] = self.lifted(xs[:self.n_w], th)
                 xs[self.n_w + j] += sign * h / self.scale[j]
                 cols.append(self.whitened(xs, sigma))
             if len(cols) < 2:
@@ -613,14 +787,18 @@ class _Problem:
             out[name] = float(np.linalg.norm(jac[:, j] - fd) / max(np.linalg.norm(fd), 1e-300))
         return out
 
-    def result(self, x: np.ndarray, stats: dict, sigma: np.ndarray, noise_source: str) -> FitResult:
+    def result(self, x: np.ndarray, stats: dict, sigma: np.ndarray, noise_source: str,
+               contact_source: str) -> FitResult:
         obs, prob = self.obs, self.prob
         theta = self.theta(x)
         names = (list(self.free) + (list(OFFSETS) if self.offsets else [])
+                 + (list(POSITION_NUISANCES) if self.path.n else [])
                  + (["time_offset"] if self.stage == 1.0 else []))
         estimates = dict(zip(self.free, map(float, theta), strict=True))
         if self.offsets:
             estimates.update(zip(OFFSETS, map(float, self.offsets_of(x)), strict=True))
+        if self.path.n:
+            estimates.update(zip(POSITION_NUISANCES, map(float, self.origin_of(x)), strict=True))
         if self.stage == 1.0:
             estimates["time_offset"] = float(x[-1] * self.t_scale)
         notes: list[str] = []
@@ -672,8 +850,12 @@ class _Problem:
         if self.stage == 1.0:
             strikes = np.array(self.strikes_fn(x)).ravel()
             rms["strike_time"] = float(np.sqrt(np.mean((strikes - self.tm.strike_rel) ** 2)))
-        noise = {name: float(np.median(sigma[obs.signal == s_i]))
+        noise = {name: float(np.median(sigma[:self.n_obs][obs.signal == s_i]))
                  for s_i, name in enumerate(SIGNALS) if np.any(obs.signal == s_i)}
+        if self.path.n:
+            rms.update(self.contact_rms(x))
+            sd_c = sigma[self.n_obs:].reshape(2, -1)
+            noise.update({k: float(np.median(sd_c[i])) for i, k in enumerate(CONTACT_KEYS)})
         whitened = self.whitened(x, sigma)
         success = bool(stats["success"])
         try:
@@ -696,7 +878,8 @@ class _Problem:
             iterations=int(stats["iter_count"]), params=fitted, gait=gait, warnings=notes,
             jacobian_check=check, priors=self.priors, solution=x,
             model="periodic" if prob.periodic else "transient", initial_state=start, sigma=sigma,
-            start_dof=len(self.start_free))
+            start_dof=len(self.start_free), contact_source=contact_source, residuals=res,
+            model_durations=durations, options=dict(self.options), n_w=self.n_w)
 
     def _gait(self, x: np.ndarray, fitted: Params, notes: list) -> dict:
         """The fitted walker's gait: the periodic fit's own, or for a transient the fitted
@@ -729,6 +912,74 @@ class _Problem:
             "stable": bool(np.max(np.abs(vals)) < 1.0),
             "planar": self.planar,
         }
+
+
+def _continued(problem: _Problem, w0: np.ndarray, result: FitResult) -> np.ndarray:
+    """The NLP's unknowns continuing the fit ``result`` on ``problem`` (built at the fit's
+    estimates, with the same free parameters and perhaps more): its gait (or transient walk)
+    when the BVPs match, its step gait twice over for a stride BVP (a symmetric gait's second
+    step, in the mirrored description, is its first), else ``w0``; the new parameters at their
+    values; its nuisances."""
+    w = w0
+    if problem.n_w == result.n_w:
+        w = result.solution[:result.n_w]
+    elif problem.prob.periodic and result.model == "periodic" and problem.n_w == 2 * result.n_w:
+        w = np.tile(result.solution[:result.n_w], 2)
+    x = problem.start(w)
+    n_w, n_f = problem.n_w, len(problem.free)
+    est = result.estimates
+    if problem.offsets and all(o in est for o in OFFSETS):
+        x[n_w + n_f:n_w + n_f + len(OFFSETS)] = [est[o] for o in OFFSETS]
+    if problem.path.n and all(o in est for o in POSITION_NUISANCES):
+        k = n_w + n_f + len(OFFSETS)
+        x[k:k + len(POSITION_NUISANCES)] = np.array([est[o] for o in POSITION_NUISANCES]) / problem.c_scale
+    if problem.stage == 1.0 and "time_offset" in est:
+        x[-1] = est["time_offset"] / problem.t_scale
+    return x
+
+
+def score_tests(table: TrajectoryTable, result: FitResult, names) -> dict:
+    """Rao's score test of each held parameter in ``names`` at the fit ``result``.
+
+    Without refitting: the whitened residuals ``r`` and their Jacobian at the fit, the fitted
+    unknowns' columns ``J_b`` (free parameters, a transient's start, offsets, origin, time
+    offset) and a held parameter's column ``j`` (implicit-function theorem through the BVP, as
+    for the fitted ones). With ``j_perp`` the part of ``j`` that the fitted unknowns cannot mimic
+    (``j`` less its projection on ``J_b``), one Gauss-Newton step in the held parameter alone is
+    ``step = -(j_perp . r) / |j_perp|^2`` with standard error ``1 / |j_perp|``, and ``z = step /
+    se`` is the signed root of the score statistic: ``z^2`` is chi-square on one degree of freedom
+    when the held value is right (Rao 1948, Proc. Camb. Phil. Soc. 44:50), and to first order the
+    likelihood-ratio statistic of freeing it.
+
+    Returns
+    -------
+    dict of str to dict
+        Per name: ``z``, ``step`` (the parameter's change, its units), ``se``.
+    """
+    names = list(names)
+    if not names:
+        return {}
+    free = list(result.free) + names
+    problem, w0 = _setup(table, result.params, free, z_guess=None, check_jacobian=False,
+                         priors=result.priors, **result.options)
+    x = _continued(problem, w0, result)
+    jac = problem.jacobian(x, result.sigma)
+    r = problem.whitened(x, result.sigma)
+    out = {}
+    held = [free.index(n) for n in names]
+    for name, col in zip(names, held, strict=True):
+        j = jac[:, col]
+        others = np.delete(jac, held, axis=1)
+        coef, *_ = np.linalg.lstsq(others, j, rcond=None)
+        perp = j - others @ coef
+        norm2 = float(perp @ perp)
+        if norm2 <= 1e-300:
+            out[name] = {"z": 0.0, "step": 0.0, "se": math.inf}
+            continue
+        step = -float(perp @ r) / norm2
+        se = 1.0 / math.sqrt(norm2)
+        out[name] = {"z": step / se, "step": step, "se": se}
+    return out
 
 
 @dataclasses.dataclass

@@ -9,13 +9,16 @@ interpolation with the exact derivatives at the nodes (error below 1e-5 rad at t
 steps per sqrt(l/g), under 1 % of a tracker's noise; tests/sysid/test_fit.py compares it with
 the collocation operator). The measurement model is that of :mod:`toywalk.sysid.measurement`.
 
-The nuisance offsets enter linearly with a fixed design and fixed weights, so with a flat prior
-they integrate out exactly: the marginal likelihood is the profile likelihood (offsets at their
-weighted least-squares values) times a constant. The time offset (the model's first heel strike
-against the measured one, :mod:`toywalk.sysid.measurement`) is profiled too, by Gauss-Newton from
-the fit's value: the profile of a nuisance this well determined (a few hundredths of a
-millisecond) is its marginal to within a constant (Laplace). The noise SDs are fixed (the file's,
-or the fit's estimates).
+The nuisance offsets (and, where the walk has contact positions, their origin) enter linearly
+with fixed weights, so with a flat prior they integrate out exactly: the marginal likelihood is
+the profile likelihood (nuisances at their weighted least-squares values) times a constant. (The
+contacts' design holds the model's path in the yaw column that the steer offset shares, so the
+"constant" is the log-determinant of a 5-by-5 normal matrix that moves with the stride length,
+by its relative spread over the posterior, a fraction of a percent: neglected.) The time offset
+(the model's first heel strike against the measured one, :mod:`toywalk.sysid.measurement`) is
+profiled too, by Gauss-Newton from the fit's value: the profile of a nuisance this well
+determined (a few hundredths of a millisecond) is its marginal to within a constant (Laplace).
+The noise SDs are fixed (the file's, or the fit's estimates).
 
 Priors: uniform within each free parameter's physical bounds (effect declarations, lengths and
 masses non-negative, foot radii below the leg length), flat elsewhere; a parameter set that is
@@ -34,7 +37,7 @@ from toywalk.model.gait import GaitNotFound, solve_fixed_point
 from toywalk.model.parameters import ParameterError, Params
 from toywalk.model.walker import Walker
 
-from .measurement import Observations, components, offsets_design, step_counts
+from .measurement import Observations, components, offsets_design, path, step_counts
 
 __all__ = ["NO_GAIT", "OK", "OUTSIDE_PRIOR", "GaitCurves", "LogPosterior", "Reading", "model_angles"]
 
@@ -122,19 +125,28 @@ class LogPosterior:
         Gaussian priors ``name -> (mean, sd)`` on some free parameters (on top of the bounds).
     time_offset : float
         The fit's time offset (s), where the profile's Gauss-Newton starts.
+    contact_sd : ndarray, shape (2 n_pos,), optional
+        SDs (m) of the measured contact positions at heel strikes (``x`` of each, then ``y``),
+        required when the walk has them (:class:`toywalk.sysid.measurement.Path`).
     """
 
     def __init__(self, params: Params, free, bounds, obs: Observations, sigma: np.ndarray,
                  offsets: bool, z_start: np.ndarray, planar: bool, period: int,
-                 priors: dict | None = None, time_offset: float = 0.0):
+                 priors: dict | None = None, time_offset: float = 0.0,
+                 contact_sd: np.ndarray | None = None):
         self.params, self.free, self.bounds = params, list(free), [tuple(b) for b in bounds]
         priors = priors or {}
         self._prior = [(self.free.index(n), float(m), float(s)) for n, (m, s) in priors.items()]
         self.obs, self.sigma = obs, np.asarray(sigma, float)
         self.offsets, self.planar, self.period = offsets, planar, period
         self.z_start = np.asarray(z_start, float)
-        self._design = offsets_design(obs) if offsets else None
+        self._design = offsets_design(obs) if offsets else np.zeros((len(obs.value), 0))
         self._reading = Reading(obs, period, planar)
+        self._path = path(obs, period)
+        self.contact_sd = np.zeros(0) if contact_sd is None else np.asarray(contact_sd, float)
+        if self.contact_sd.shape != (2 * self._path.n,) or not np.all(self.contact_sd > 0):
+            raise ValueError(f"contact_sd must hold {2 * self._path.n} positive SDs (m), one per "
+                             f"measured contact coordinate, got shape {self.contact_sd.shape}")
         self.time_offset = float(time_offset)
         self._token = uuid.uuid4().hex  # names this posterior's warm starts in each process
 
@@ -169,34 +181,56 @@ class LogPosterior:
             return gait, walker
         return None, walker
 
-    def _residuals(self, curves: GaitCurves, time_offset: float) -> tuple[np.ndarray, np.ndarray]:
-        """Whitened residuals (angles with the offsets at their best values, then strike times)
-        and the model's angles with those offsets."""
-        angles, strikes = curves.angles(time_offset)
-        resid = angles - self.obs.value
-        weights = 1.0 / self.sigma**2
+    def _nuisance_design(self, gait) -> tuple[np.ndarray, np.ndarray]:
+        """The linear nuisances' design over the angle rows then the contact rows (offsets, then
+        the contacts' origin; the steer offset also yaws the contacts) and the contacts' model
+        values without them, ``(design, contacts)``."""
+        n_pos, b = self._path.n, self._design
+        if not n_pos:
+            return b, np.zeros(0)
+        disp = np.array([step.contact for step in gait.steps]).T
+        x, y = self._path.relative(disp)
+        pos = self._path.design(disp)  # columns: yaw (the steer offset), origin_x, origin_y
+        design = np.zeros((len(b) + 2 * n_pos, b.shape[1] + 2))
+        design[:len(b), :b.shape[1]] = b
+        design[len(b):, b.shape[1]:] = pos[:, 1:]
         if self.offsets:
-            b = self._design
-            best = (b.T @ (weights * -resid)) / np.maximum(b.T @ weights, 1e-300)
-            resid = resid + b @ best
-            angles = angles + b @ best
+            design[len(b):, 1] = pos[:, 0]
+        return design, np.r_[x, y]
+
+    def _residuals(self, curves: GaitCurves, time_offset: float,
+                   nuisance: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+        """Whitened residuals (angles with the linear nuisances at their best values, strike
+        times, then contact positions) and the model's angles with those nuisances."""
+        angles, strikes = curves.angles(time_offset)
+        design, contacts = nuisance
+        n_obs = len(angles)
+        sd = np.r_[self.sigma, self.contact_sd]
+        resid = np.r_[angles - self.obs.value, contacts - self._path.value.T.ravel()] / sd
+        if design.shape[1]:
+            whitened = design / sd[:, None]
+            best = np.linalg.lstsq(whitened, -resid, rcond=None)[0]
+            resid = resid + whitened @ best
+            angles = angles + design[:n_obs] @ best
         r_strike = (strikes - curves.strike_rel) / self.obs.strike_sd
-        return np.r_[resid / self.sigma, r_strike], angles
+        return np.r_[resid[:n_obs], r_strike, resid[n_obs:]], angles
 
     def profile(self, gait, walker) -> tuple[float, float, np.ndarray]:
         """``(chi2, time_offset, angles)`` with the offsets and the time offset at their best
         values (Gauss-Newton on the time offset, central differences of 1 microsecond: the
         angles are cubic in it, so the difference is exact to round-off times the rates)."""
         curves = GaitCurves(gait, self.obs, self.planar, walker, self._reading)
+        nuisance = self._nuisance_design(gait)
         dt, h = self.time_offset, 1e-6
         for _ in range(_PROFILE_ITERATIONS):
-            r0, _ = self._residuals(curves, dt)
-            slope = (self._residuals(curves, dt + h)[0] - self._residuals(curves, dt - h)[0]) / (2 * h)
+            r0, _ = self._residuals(curves, dt, nuisance)
+            slope = (self._residuals(curves, dt + h, nuisance)[0]
+                     - self._residuals(curves, dt - h, nuisance)[0]) / (2 * h)
             step = -float(slope @ r0) / max(float(slope @ slope), 1e-300)
             dt += step
             if abs(step) < 1e-9:
                 break
-        r, angles = self._residuals(curves, dt)
+        r, angles = self._residuals(curves, dt, nuisance)
         return float(r @ r), dt, angles
 
     def chi2(self, gait, walker) -> float:

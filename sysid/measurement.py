@@ -33,6 +33,11 @@ model's first strike against the measured one.
 Nuisance parameters: an orientation error of the ramp frame (the camera's pose of the ramp) shows,
 to first order, as constant offsets of lean (roll), steer (yaw) and both pitches (pitch); they
 enter as three offsets.
+
+Stride length: where the events file gives the contact position of heel strikes (``x, y``, with
+``x_sd, y_sd`` where measured), each step's advance is data too. The model's contacts follow from
+each step's displacement (:class:`Path`); the measured positions' unknown origin (two nuisances,
+:data:`POSITION_NUISANCES`) and the ramp frame's yaw (the steer offset) enter linearly.
 """
 
 from __future__ import annotations
@@ -45,13 +50,15 @@ import scipy.sparse as sp
 from toywalk.model.collocation import BVP
 from toywalk.model.trajectory import SIGNALS, TrajectoryTable
 
-__all__ = ["OFFSETS", "MeasurementError", "Observations", "Timing", "components", "first_side",
-           "lagrange_weights", "model_steps", "observations", "offsets_design", "operator", "step_counts",
-           "timing"]
+__all__ = ["OFFSETS", "POSITION_NUISANCES", "MeasurementError", "Observations", "Path", "Timing",
+           "components", "first_side", "lagrange_weights", "model_steps", "observations",
+           "offsets_design", "operator", "path", "step_counts", "timing"]
 
 #: Nuisance offsets (rad), one per group of signals: lean, steer, and both pitches.
 OFFSETS = ("lean_offset", "steer_offset", "pitch_offset")
 _OFFSET_OF = {"lean": 0, "steer": 1, "pitch_left": 2, "pitch_right": 2}
+#: Nuisance unknowns of measured contact positions (m): where the first measured contact lies.
+POSITION_NUISANCES = ("origin_x", "origin_y")
 
 
 class MeasurementError(ValueError):
@@ -82,6 +89,9 @@ class Observations:
         Sample time (s).
     strike_sd : ndarray, shape (n_steps + 1,)
         Standard deviation of each measured heel-strike time (s).
+    contact, contact_sd : ndarray, shape (n_steps + 1, 2)
+        Each heel strike's contact position on the ramp (m, ramp frame: down the fall line, to
+        the left) and its standard deviation (m); NaN where the file gives none.
     """
 
     step_start: np.ndarray
@@ -95,6 +105,13 @@ class Observations:
     sd: np.ndarray
     time: np.ndarray
     strike_sd: np.ndarray
+    contact: np.ndarray = None
+    contact_sd: np.ndarray = None
+
+    def __post_init__(self):
+        unknown = np.full((len(self.strike_sd), 2), np.nan)
+        self.contact = unknown if self.contact is None else self.contact
+        self.contact_sd = unknown.copy() if self.contact_sd is None else self.contact_sd
 
     @property
     def durations(self) -> np.ndarray:
@@ -113,6 +130,16 @@ class Observations:
     def sd_known(self) -> bool:
         """True when every observation has a standard deviation from the file."""
         return bool(np.all(np.isfinite(self.sd)))
+
+    @property
+    def located(self) -> np.ndarray:
+        """Indices of the heel strikes (into :attr:`strikes`) with a measured contact position."""
+        return np.flatnonzero(np.all(np.isfinite(self.contact), axis=1))
+
+    @property
+    def contact_sd_known(self) -> bool:
+        """True when every measured contact position has its standard deviations from the file."""
+        return bool(np.all(np.isfinite(self.contact_sd[self.located])))
 
 
 def observations(table: TrajectoryTable, signals=SIGNALS) -> Observations:
@@ -167,10 +194,17 @@ def observations(table: TrajectoryTable, signals=SIGNALS) -> Observations:
     bad_sd = np.isfinite(data["sd"]) & (data["sd"] <= 0)
     if np.any(bad_sd):
         raise MeasurementError("standard deviations (*_sd columns) must be positive")
+    contact = np.array([[e.get(c, math.nan) for c in ("x", "y")] for e in events], dtype=float)
+    contact_sd = np.array([[e.get(c, math.nan) for c in ("x_sd", "y_sd")] for e in events], dtype=float)
+    if np.any(np.isinf(contact)) or np.any(np.isinf(contact_sd)):
+        raise MeasurementError("heel-strike positions (x, y, x_sd, y_sd) must be finite or empty")
+    if np.any(contact_sd <= 0):
+        raise MeasurementError("heel-strike position standard deviations (x_sd, y_sd) must be positive")
     return Observations(step_start=start, step_end=end, stance=stance,
                         duration_sd=np.hypot(sd_t[:-1], sd_t[1:]), step=data["step"].astype(int),
                         phase=np.clip(data["phase"], 0.0, 1.0), signal=data["signal"].astype(int),
-                        value=data["value"], sd=data["sd"], time=data["time"], strike_sd=sd_t)
+                        value=data["value"], sd=data["sd"], time=data["time"], strike_sd=sd_t,
+                        contact=contact, contact_sd=contact_sd)
 
 
 def lagrange_weights(points, s) -> list:
@@ -253,6 +287,66 @@ def step_counts(obs: Observations, phases: int, periodic: bool = True) -> tuple[
     own = np.zeros((len(obs.value), phases))
     own[np.arange(len(obs.value)), steps[obs.step]] = 1.0
     return strikes_before[obs.step], own, strikes_before
+
+
+@dataclasses.dataclass
+class Path:
+    """The model's contact positions at the measured heel strikes that have one.
+
+    The stance contact advances by each step's displacement ``D`` (shape (2, phases), the step's
+    own mirrored frame: :func:`toywalk.model.collocation.step_displacements`); a step with the
+    right leg in stance has its sideways component negated. From the first measured strike, the
+    model's contact at strike ``k`` is ``(X_k, Y_k) = (along[k] @ D[0], across[k] @ D[1])``.
+    Measured in a ramp frame yawed by the steer offset ``o`` (the camera's error, the one that
+    shifts the measured steer, :data:`OFFSETS`) and with its first contact at ``origin``, it is
+    ``origin + (X - o Y, Y + o X)`` (to first order in ``o``: a few mrad, so the neglected term is
+    below a micrometre over a metre of walk).
+
+    Attributes
+    ----------
+    index : ndarray of int, shape (n_pos,)
+        The heel strikes (into ``Observations.strikes``) with a measured contact position.
+    value, sd : ndarray, shape (n_pos, 2)
+        Measured positions (m) and their standard deviations (m; NaN where the file gives none).
+    along, across : ndarray, shape (n_pos, phases)
+        How many of each model step precede the strike, and the same counted with the stance
+        sign (+1 left, -1 right).
+    """
+
+    index: np.ndarray
+    value: np.ndarray
+    sd: np.ndarray
+    along: np.ndarray
+    across: np.ndarray
+
+    @property
+    def n(self) -> int:
+        return len(self.index)
+
+    def relative(self, displacements):
+        """``(X, Y)``, each shape (n_pos,), from the first measured strike (NumPy or CasADi)."""
+        return _dot(self.along, displacements[0, :].T), _dot(self.across, displacements[1, :].T)
+
+    def design(self, displacements) -> np.ndarray:
+        """The positions' linear nuisances as a design, shape (2 n_pos, 3): ``X`` then ``Y``
+        rows; columns the steer offset (yaw), ``origin_x`` and ``origin_y``. NumPy only."""
+        x, y = self.relative(np.asarray(displacements, float))
+        out = np.zeros((2 * self.n, 3))
+        out[:self.n, 0], out[self.n:, 0] = -y, x
+        out[:self.n, 1] = out[self.n:, 2] = 1.0
+        return out
+
+
+def path(obs: Observations, phases: int, periodic: bool = True) -> Path:
+    """The contact-position part of the measurement model (:class:`Path`)."""
+    steps = model_steps(obs, phases, periodic)
+    along = step_counts(obs, phases, periodic)[2]
+    across = np.zeros_like(along)
+    for k, (j, stance) in enumerate(zip(steps, obs.stance, strict=True)):
+        across[k + 1:, j] += 1.0 if stance == "L" else -1.0
+    index = obs.located
+    return Path(index=index, value=obs.contact[index], sd=obs.contact_sd[index],
+                along=along[index], across=across[index])
 
 
 @dataclasses.dataclass

@@ -31,9 +31,10 @@ from toywalk.model.parameters import Params
 from toywalk.model.trajectory import SIGNALS, TrajectoryTable
 from toywalk.model.walker import STATE_NAMES
 
-from .fit import gait_period, parameter_bounds
+from .fit import CONTACT_KEYS, gait_period, parameter_bounds
 from .likelihood import NO_GAIT, OK, OUTSIDE_PRIOR, LogPosterior
 from .measurement import observations
+from .measurement import path as contact_path
 
 __all__ = ["SampleError", "SampleSummary", "diagnose_chains", "posterior_from_fit", "sample"]
 
@@ -107,11 +108,25 @@ def posterior_from_fit(report: dict, table: TrajectoryTable) -> tuple[LogPosteri
         sigma = np.array([noise[SIGNALS[s]] for s in obs.signal], dtype=float)
     if not np.all(np.isfinite(sigma) & (sigma > 0)):
         raise SampleError("the noise SDs are not all positive and finite")
+    located = contact_path(obs, 1)
+    contact_sd = None
+    if located.n:
+        source_c = report.get("contact_source", "none")
+        if source_c == "file":
+            contact_sd = np.r_[located.sd[:, 0], located.sd[:, 1]]
+        elif all(k in noise for k in CONTACT_KEYS):
+            contact_sd = np.repeat([float(noise[k]) for k in CONTACT_KEYS], located.n)
+        else:
+            raise SampleError("the walk has contact positions that the fit did not use: fit it "
+                              "again with this toolkit's fit")
+        if not np.all(np.isfinite(contact_sd) & (contact_sd > 0)):
+            raise SampleError("the contact positions' SDs are not all positive and finite")
     bounds = [parameter_bounds(params, n) for n in free]
     priors = {n: tuple(v) for n, v in report.get("priors", {}).items()}
     post = LogPosterior(params, free, bounds, obs, sigma, offsets, z_start, planar,
                         gait_period(params, free), priors,
-                        time_offset=float(report["estimates"].get("time_offset", 0.0)))
+                        time_offset=float(report["estimates"].get("time_offset", 0.0)),
+                        contact_sd=contact_sd)
     return post, estimates, cov
 
 
