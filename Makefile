@@ -24,6 +24,7 @@ bench: $(STAMP)
 	$(PY) benchmarks/run_all.py
 	$(PY) benchmarks/track_accuracy.py
 	$(PY) benchmarks/sample_speed.py
+	$(PY) benchmarks/diagnose_speed.py
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check model tracking sysid tests benchmarks

@@ -35,7 +35,8 @@ _MAXIT = 8
 
 @dataclasses.dataclass
 class BranchPoint(Stability):
-    """One gait on the branch."""
+    """One gait on the branch: ``clearance`` is the swing foot's over its whole swing and
+    ``clearance_ahead`` where it occurs, ahead of the stance contact (m; :class:`SwingClearance`)."""
 
     value: float
     fixed_point: np.ndarray
@@ -46,6 +47,8 @@ class BranchPoint(Stability):
     period: int = 1
     steer_amplitude: float = 0.0
     heading: float = 0.0
+    clearance: float = math.nan
+    clearance_ahead: float = math.nan
 
 
 @dataclasses.dataclass
@@ -88,14 +91,16 @@ class Branch:
 
     def table(self) -> tuple[list[str], np.ndarray]:
         """(column names, rows): value, step time, stride length, max|lambda|, stable, lean and
-        steer amplitudes, heading, the fixed point's eight components."""
+        steer amplitudes, heading, the swing foot's clearance over the whole swing and where it
+        occurs (ahead of the stance contact), the fixed point's eight components."""
         from .walker import STATE_NAMES
 
         cols = [self.name, "step_time", "stride_length", "max_abs_eigenvalue", "stable",
-                "lean_amplitude", "steer_amplitude", "heading", *STATE_NAMES]
+                "lean_amplitude", "steer_amplitude", "heading", "clearance", "clearance_ahead",
+                *STATE_NAMES]
         rows = np.array([[p.value, p.step_time, p.stride_length, p.max_abs_eigenvalue,
                           float(p.stable), p.lean_amplitude, p.steer_amplitude, p.heading,
-                          *p.fixed_point] for p in self.points])
+                          p.clearance, p.clearance_ahead, *p.fixed_point] for p in self.points])
         return cols, rows
 
 
@@ -106,10 +111,12 @@ def _index(name: str) -> int:
 
 
 def _point(gait: Gait, value: float) -> BranchPoint:
+    swing = gait.swing_clearance
     return BranchPoint(value=value, fixed_point=gait.fixed_point.copy(), step_time=gait.step_time,
                        stride_length=gait.stride_length, eigenvalues=gait.eigenvalues.copy(),
                        lean_amplitude=gait.lean_amplitude, period=gait.period,
-                       steer_amplitude=gait.steer_amplitude, heading=gait.heading)
+                       steer_amplitude=gait.steer_amplitude, heading=gait.heading,
+                       clearance=swing.minimum, clearance_ahead=swing.ahead)
 
 
 def continue_branch(params: Params, name: str, start: float, end: float, max_points: int = 200,

@@ -25,7 +25,7 @@ import numpy as np
 
 from .effects import EFFECTS
 from .parameters import Params
-from .walker import STATE_NAMES, Step, StepFailure, Walker, is_planar_symmetric
+from .walker import STATE_NAMES, Step, StepFailure, SwingClearance, Walker, is_planar_symmetric
 
 __all__ = ["Gait", "GaitNotFound", "Stability", "continue_gait", "find_gait", "planar_gaits",
            "planar_reduction", "solve_fixed_point"]
@@ -129,6 +129,18 @@ class Gait(Stability):
         return float(np.arctan2(dy, dx))
 
     @property
+    def swing_clearance(self) -> SwingClearance:
+        """How the swing foot clears the ramp over its whole swing (:class:`SwingClearance`), for
+        the step of the period where it comes closest."""
+        return min((s.swing for s in self.steps), key=lambda c: c.minimum)
+
+    @property
+    def clearance(self) -> float:
+        """The swing foot's clearance over its whole swing (m; :class:`SwingClearance`), the
+        lowest over the period's steps: negative when it goes below the ramp between heel strikes."""
+        return self.swing_clearance.minimum
+
+    @property
     def lean_amplitude(self) -> float:
         """Half the peak-to-peak lean psi over a stride, in the physical frame (rad): max |psi|
         for a step-periodic gait, about the mean lean for a stride-periodic one."""
@@ -189,7 +201,9 @@ class Gait(Stability):
             "lean_amplitude": self.lean_amplitude,
             "steer_amplitude": self.steer_amplitude,
             "scuffs": sum(s.scuffs for s in self.steps),
-            "clearance": min(s.clearance for s in self.steps),
+            "clearance": self.clearance,
+            "swing_clearance": self.swing_clearance.as_dict(),
+            "clearance_after_passing": min(s.clearance for s in self.steps),
             "collision_loss": [s.collision_loss for s in self.steps],
             "residual": self.residual,
             "iterations": self.iterations,
@@ -345,7 +359,7 @@ def planar_gaits(params: Params, stance_angles: Sequence[float] = (0.05, 0.1, 0.
 
 
 def find_gait(params: Params, z_guess: np.ndarray | None = None, planar: bool | None = None,
-              steps_per_time_unit: int = 16) -> Gait:
+              steps_per_time_unit: int = 16, min_clearance: float | None = None) -> Gait:
     """Find the walker's symmetric gait.
 
     Parameters
@@ -359,33 +373,61 @@ def find_gait(params: Params, z_guess: np.ndarray | None = None, planar: bool | 
         and its 3D mass matrix is singular in the lateral directions (point-mass limits).
     steps_per_time_unit : int
         Integration resolution (see :class:`Walker`).
+    min_clearance : float, optional
+        Accept only a gait whose swing foot clears the ramp by at least this much over its whole
+        swing (m, :attr:`Gait.clearance`): the search goes on to the next gait branch when one does
+        not. Default: any gait.
 
     Raises
     ------
     GaitNotFound
-        With what was tried.
+        With what was tried (and, with ``min_clearance``, the clearances of the gaits refused).
     """
+    if min_clearance is not None and not math.isfinite(min_clearance):
+        raise ValueError(f"min_clearance must be a finite height (m) or None, got {min_clearance!r}")
     if planar is None:
         planar = is_planar_symmetric(params) and _lateral_singular(params)
+    refused: list[Gait] = []
+    reasons: list[str] = []
+    for gait in _gaits(params, z_guess, planar, steps_per_time_unit, reasons):
+        if min_clearance is None or gait.clearance >= min_clearance:
+            return gait
+        refused.append(gait)
+    if refused:
+        which = ", ".join(f"{1e3 * g.clearance:.3g} mm (step time {g.step_time:.4g} s)" for g in refused)
+        raise GaitNotFound(
+            f"no gait clears the ramp by {1e3 * min_clearance:.3g} mm over the whole swing; the gaits "
+            f"found clear it by {which}"
+        )
+    raise GaitNotFound(reasons[-1] if reasons else "no gait found")
+
+
+def _gaits(params: Params, z_guess: np.ndarray | None, planar: bool, steps_per_time_unit: int,
+           reasons: list[str]):
+    """The gaits :func:`find_gait` tries, one branch after another (a generator); why each
+    attempt failed is appended to ``reasons``, the last entry saying what was tried."""
     walker = Walker(params, planar=planar, steps_per_time_unit=steps_per_time_unit)
     if z_guess is not None:
-        return solve_fixed_point(walker, z_guess)
+        try:
+            yield solve_fixed_point(walker, z_guess)
+        except GaitNotFound as err:
+            reasons.append(str(err))
+        return
     if params.active_effects:
         # Effects on: the seed model's gait first, then the effects raised from null along the
         # gaits (the stride map's fixed points where an effect breaks the mirror symmetry).
         seed = _without_effects(params)
         base = find_gait(seed, planar=planar, steps_per_time_unit=steps_per_time_unit)
         try:
-            return continue_gait(seed, params, base.fixed_point, steps_per_time_unit,
-                                 planar=base.planar)
+            yield continue_gait(seed, params, base.fixed_point, steps_per_time_unit, planar=base.planar)
         except GaitNotFound as err:
-            raise GaitNotFound(
+            reasons.append(
                 f"the walker without effects walks (step time {base.step_time:.4g} s) but its gait "
                 f"does not follow to these effects: {err}"
-            ) from err
+            )
+        return
     reduced = planar_reduction(params)
     planar_walker = Walker(reduced, planar=True, steps_per_time_unit=steps_per_time_unit)
-    reasons = []
     tried: list[Gait] = []
     # First the simplest walker's asymptotics (fast, enough for light legs); then, if no gait
     # follows from there, every distinct planar gait of a wider grid of starts (heavy legs).
@@ -401,16 +443,15 @@ def find_gait(params: Params, z_guess: np.ndarray | None = None, planar: bool | 
                 abs(g.step_time - t.step_time) <= 1e-6 * t.step_time for t in tried)]
         for base in bases:
             if planar:
-                return base
+                yield base
+                continue
             try:
-                return continue_gait(reduced, params, base.fixed_point, steps_per_time_unit)
+                yield continue_gait(reduced, params, base.fixed_point, steps_per_time_unit)
             except GaitNotFound as err:
                 reasons.append(f"from the planar gait with step time {base.step_time:.4g} s: {err}")
-    if not reasons:
-        reasons.append("no planar gait from any start")
-    raise GaitNotFound(
+    reasons.append(
         f"no gait found (planar starts near the simplest walker's and a wider grid; "
-        f"last: {reasons[-1]})"
+        f"last: {reasons[-1] if reasons else 'no planar gait from any start'})"
     )
 
 

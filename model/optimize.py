@@ -34,6 +34,7 @@ __all__ = [
     "FitResult",
     "GaitEvaluator",
     "OptimisationResult",
+    "clearance_constraint",
     "fit_gait_targets",
     "gait_features",
     "heading_eigenvalue",
@@ -43,7 +44,7 @@ __all__ = [
 
 #: Gait features that :func:`fit_gait_targets` can match (units in :func:`gait_features`).
 GAIT_FEATURES = ("stride_time", "stride_length", "lean_amplitude", "steer_amplitude",
-                 "max_abs_eigenvalue", "step_time")
+                 "max_abs_eigenvalue", "step_time", "clearance")
 
 # A failed evaluation (no gait, a bound or constraint violated) is worth this much more than any
 # gait in :func:`minimise_max_eigenvalue`, plus a term that grows with the violation so that the
@@ -83,7 +84,8 @@ def gait_features(gait: Gait) -> dict[str, float]:
     dict
         ``stride_time`` (s, two steps), ``step_time`` (s), ``stride_length`` (m, advance along the
         fall line per stride), ``lean_amplitude`` and ``steer_amplitude`` (rad, max |psi| and
-        |phi| over a step), ``max_abs_eigenvalue`` (step map).
+        |phi| over a step), ``max_abs_eigenvalue`` (step map), ``clearance`` (m, the swing foot's
+        over its whole swing, :attr:`Gait.clearance`).
     """
     return {
         "stride_time": gait.stride_time,
@@ -92,6 +94,7 @@ def gait_features(gait: Gait) -> dict[str, float]:
         "lean_amplitude": gait.lean_amplitude,
         "steer_amplitude": gait.steer_amplitude,
         "max_abs_eigenvalue": gait.max_abs_eigenvalue,
+        "clearance": gait.clearance,
     }
 
 
@@ -216,7 +219,8 @@ def minimise_max_eigenvalue(gait: Gait, free_names: Sequence[str],
                             constraint: Callable[[Params, Gait], float] | None = None,
                             objective: Callable[[Gait], float] | None = None,
                             maxiter: int = 300, initial_step: float = 0.1,
-                            continuation: bool = True, progress: bool = False) -> OptimisationResult:
+                            continuation: bool = True, progress: bool = False,
+                            min_clearance: float | None = None) -> OptimisationResult:
     """Minimise a gait's step-map max |eigenvalue| over a few parameters (Nelder-Mead).
 
     Parameters
@@ -242,6 +246,9 @@ def minimise_max_eigenvalue(gait: Gait, free_names: Sequence[str],
         fewer lost points; see :class:`GaitEvaluator`).
     progress : bool
         Show a tqdm progress bar of the evaluations.
+    min_clearance : float, optional
+        A constraint: the swing foot must clear the ramp by at least this much over its whole
+        swing (m, :attr:`Gait.clearance`); checked with ``constraint``, penalised alike.
 
     Returns
     -------
@@ -256,6 +263,7 @@ def minimise_max_eigenvalue(gait: Gait, free_names: Sequence[str],
     names = tuple(free_names)
     lo, hi = _check_bounds(names, bounds, gait.params)
     objective = objective or (lambda g: g.max_abs_eigenvalue)
+    constraint = clearance_constraint(min_clearance, constraint)
     evaluator = GaitEvaluator(gait.params, names, gait, continuation=continuation)
     x0 = evaluator.values()
     start_value = float(objective(gait))
@@ -413,6 +421,24 @@ def fit_gait_targets(gait: Gait, free_names: Sequence[str], bounds: Mapping[str,
         cost=float(best["cost"]), evaluations=evaluator.evaluations, failures=evaluator.failures,
         status="converged" if res.status > 0 else "stopped", message=str(res.message),
     )
+
+
+def clearance_constraint(min_clearance: float | None,
+                         constraint: Callable[[Params, Gait], float] | None = None
+                         ) -> Callable[[Params, Gait], float] | None:
+    """``constraint`` joined with a minimum clearance: a ``constraint(params, gait) -> float``,
+    feasible when >= 0, that is the smaller of ``constraint``'s value and ``gait.clearance -
+    min_clearance`` (m). Either may be None (no such constraint)."""
+    if min_clearance is None:
+        return constraint
+    if not math.isfinite(min_clearance):
+        raise ValueError(f"min_clearance must be a finite height (m) or None, got {min_clearance!r}")
+
+    def joined(params: Params, gait: Gait) -> float:
+        margin = gait.clearance - min_clearance
+        return margin if constraint is None else min(margin, float(constraint(params, gait)))
+
+    return joined
 
 
 # ------------------------------------------------------------------------------------------------

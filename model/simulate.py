@@ -53,6 +53,10 @@ class Trajectory:
         Swing-foot touches of the ramp while the legs passed (ignored by the model, counted).
     min_clearance : float
         Smallest swing-foot height between the legs passing and heel strike, over all steps (m).
+    swing_clearance : float
+        Smallest clearance of the swing foot over its whole swing, over all steps (m;
+        :class:`~toywalk.model.walker.SwingClearance`): negative when it went below the ramp
+        between heel strikes.
     status : str
         ``"completed"``, ``"fell"``, ``"no_heel_strike"`` or ``"inadmissible_impact"``.
     message : str
@@ -73,6 +77,7 @@ class Trajectory:
     message: str
     collision_losses: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
     dissipated: dict = dataclasses.field(default_factory=dict)
+    swing_clearance: float = np.inf
 
     @property
     def lean(self) -> np.ndarray:
@@ -129,6 +134,7 @@ def simulate(params: Params, z0: np.ndarray, steps: int, sample_rate: float | No
     chunks_t, chunks_x, chunks_s, chunks_c = [], [], [], []
     events: list[HeelStrike] = []
     scuffs, clearance, status, message = 0, np.inf, "completed", f"{steps} steps"
+    swing_clearance = np.inf
     next_sample = 0.0
     losses: list[float] = []
     dissipated = np.zeros(len(CONTINUOUS))
@@ -168,6 +174,7 @@ def simulate(params: Params, z0: np.ndarray, steps: int, sample_rate: float | No
             break
         scuffs += step.scuffs
         clearance = min(clearance, step.clearance)
+        swing_clearance = min(swing_clearance, step.swing.minimum)
         losses.append(step.collision_loss)
         dissipated += step.dissipated[-1]
         t0 += step.step_time
@@ -187,7 +194,8 @@ def simulate(params: Params, z0: np.ndarray, steps: int, sample_rate: float | No
     return Trajectory(times=times_all, states=states_all, stance=stance_all, contact=contact_all,
                       events=events, scuffs=scuffs, min_clearance=float(clearance), status=status,
                       message=message, collision_losses=np.array(losses),
-                      dissipated=dict(zip(CONTINUOUS, dissipated.tolist(), strict=True)))
+                      dissipated=dict(zip(CONTINUOUS, dissipated.tolist(), strict=True)),
+                      swing_clearance=float(swing_clearance))
 
 
 def _mirror(z: np.ndarray, sign: float) -> np.ndarray:

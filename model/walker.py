@@ -51,46 +51,54 @@ _IMPACT_RTOL = 1e-12
 class SwingClearance:
     """How the swing foot clears the ramp over its whole swing, from lift-off to heel strike.
 
-    The swing foot's height is the height h(t) of its lowest point over the ramp plane: for a
+    The swing foot's height h(t) is the height of its lowest point over the ramp plane: for a
     convex foot over a plane, its distance from the ramp. It leaves the ramp at the heel strike that
-    starts the step (h = 0) and lands on it at the next (h = 0), so its minimum over the closed
-    swing is always 0 and says nothing. The clearance is taken over the open swing, between those
-    two contacts: the lowest interior local minimum of h(t), 0 < t < T (each solved on the flow,
-    dh/dt = 0), or, when h has none (it rises once and falls once), its apex. A swing foot that
-    moves into the ramp at lift-off, or touches it while passing the stance foot, has a negative
-    interior minimum, so the clearance is negative exactly when the swing foot goes below the ramp
-    surface somewhere between the two heel strikes.
+    starts the step (h = 0) and lands at the next (h = 0), so its minimum over the closed swing is
+    always 0 and says nothing. The clearance is the lower of
 
-    This is a clearance for feet offset sideways by the hip width w (model.md section 2): the
-    swing foot passes beside the stance foot, not through it, and the ramp is the only thing it
-    can hit (torus feet of lateral radius rho never meet while w > 2 rho). Its height as the legs
-    pass is ``-w sin(psi)`` with equal pitches, so lean lifts it (psi < 0: the walker leans onto
-    its stance foot). A walker with w = 0 (the seed's, the compass walker) runs both feet on one
-    line: its clearance is at most 0, and its feet pass through each other, which the model ignores.
+    - its height as the legs pass (the instant it comes level with the stance foot's contact
+      point, ``ahead`` = 0), the one instant every swing has in its middle; and
+    - every interior local minimum of h (a dip anywhere between lift-off and heel strike, before
+      or after the legs pass), each solved on the flow (dh/dt = 0).
+
+    It is negative exactly when the swing foot goes below the ramp somewhere between the two heel
+    strikes: a foot that moves into the ramp at lift-off, or dips into it while passing, has a
+    negative interior minimum. It extends :attr:`Step.clearance` (the same, after the legs pass
+    only) to the whole swing.
+
+    Why this is meaningful for feet offset sideways by the hip width w (model.md section 2): the
+    swing foot passes beside the stance foot, not through it, and the ramp is the only thing it can
+    hit (torus feet of lateral radius rho never meet while w > 2 rho). With equal pitches its height
+    as the legs pass is ``-w sin(psi)``: lean towards the stance foot (psi < 0) lifts it, as the
+    toy's rocking does. A walker with w = 0 (the seed's, the compass walker) runs both feet on one
+    line: its clearance is at most 0 (its feet pass through each other, which the model ignores).
 
     Attributes
     ----------
     minimum : float
-        The clearance (m): the lowest interior minimum of h, or its apex when it has none.
+        The clearance (m).
     time : float
         When it occurs (s after the heel strike that starts the step).
     phase : float
         ``time`` as a fraction of the step's duration.
     ahead : float
         Where it occurs: the swing foot's lowest point ahead of the stance contact along the heading
-        (m; negative while the swing foot is behind, before the legs pass).
+        (m; negative while it is behind, before the legs pass; 0 at the passing instant).
     beside : float
-        The swing foot's lowest point's distance sideways from the stance contact there (m, about
+        The swing foot's lowest point's distance sideways from the stance contact there (m; about
         w when the legs are parallel).
     at_passing : float
-        h at the instant the legs pass (``ahead`` = 0; m).
+        h as the legs pass (m).
     apex : float
         The highest h over the swing (m).
     lift_off_rate : float
         dh/dt just after the heel strike that starts the step (m/s): the trailing foot leaves the
-        ramp only if it is positive.
+        ramp there only if it is positive.
     dips : int
-        Interior local minima of h (0: one rise and one fall).
+        Interior local minima of h (0: it rises once and falls once).
+    where : str
+        ``"legs passing"`` when the clearance is the height as the legs pass, ``"dip"`` when it is
+        an interior minimum.
     """
 
     minimum: float
@@ -102,6 +110,7 @@ class SwingClearance:
     apex: float
     lift_off_rate: float
     dips: int
+    where: str
 
     def as_dict(self) -> dict:
         """JSON-ready copy (m, s, m/s)."""
@@ -135,11 +144,11 @@ class Step:
         Downward crossings of the ramp by the swing foot before it passed the stance foot.
     clearance : float
         How close the swing foot comes to the ramp after it has passed the stance foot (m): the
-        lower of its height at the instant it passes (solved on the flow) and its interior minima
-        of height after that (sampled on the integration grid and refined by a parabola), the
-        final descent onto the ramp at heel strike excluded. Negative when it passes the stance
-        foot while still below the ramp surface. NaN unless the step was recorded (``record``):
-        the step map itself does not need it. See ``swing`` for the clearance over the whole swing.
+        lower of its height at the instant it passes and its interior minima of height after that
+        (each solved on the flow), the final descent onto the ramp at heel strike excluded.
+        Negative when it passes the stance foot while still below the ramp surface. NaN unless the
+        step was recorded (``record``): the step map itself does not need it. See ``swing`` for
+        the clearance over the whole swing.
     swing : SwingClearance or None
         The swing foot's clearance over its whole swing, from lift-off to heel strike, when the step
         was recorded.
@@ -419,10 +428,9 @@ class Walker:
                 "no_heel_strike",
                 f"the swing foot must start behind the stance foot (it is {g_prev[1]:.3g} m ahead)",
             )
-        # Clearance (see Step; only when recording): the grid sample before the legs pass, and the
-        # swing-foot heights at the grid samples after they have passed, up to the heel strike.
+        # Clearance (see Step and SwingClearance; only when recording): the grid sample before the
+        # legs pass, from which the passing instant is solved.
         x_pass = None
-        after_pass: list[np.ndarray] = []
         blocks = [x0[None, :].copy()] if record else None
         n_max = int(math.ceil(self.max_step_time / dt))
         while True:
@@ -450,17 +458,14 @@ class Walker:
                     j_hit = int(j)
                     break
                 scuffs += 1
-            upto = SCAN if j_hit is None else j_hit
-            if record and x_pass is not None:
-                after_pass.append(h[:upto])
-            elif record:  # do the legs pass in this chunk (possibly in the heel strike's step)?
+            if record and x_pass is None:  # do the legs pass in this chunk (or the strike's step)?
                 seen = np.flatnonzero(ahead[: SCAN if j_hit is None else j_hit + 1] > 0.0)
                 if len(seen):
                     first = int(seen[0])
                     x_pass = xs[:, first - 1].copy() if first > 0 else x.copy()
                     ahead_pass = (float(ahead[first - 1] if first > 0 else g_prev[1]),
                                   float(ahead[first]))
-                    after_pass.append(h[first:upto])
+                    t_pass = (n_done + first) * dt  # the grid time of x_pass
             if j_hit is not None:
                 break
             if record:
@@ -497,7 +502,7 @@ class Walker:
             z_minus=self.to_public(x_t),
             contact=contact,
             scuffs=scuffs,
-            clearance=self._clearance(x_pass, ahead_pass, after_pass, p) if record else math.nan,
+            clearance=math.nan,
             side=side,
             collision_loss=-float(d_kinetic[0]),
             impulses=impulses,
@@ -507,39 +512,17 @@ class Walker:
             out.states = np.concatenate(blocks)
             out.times = np.concatenate([np.arange(hit + 1) * dt, [step_time]])
             out.dissipated = self._dissipated(out.states, out.times, p)
-            out.swing = self._swing_clearance(out.states, out.times, x_pass, ahead_pass, p)
+            passing = self._passing(x_pass, t_pass, ahead_pass, p)
+            out.swing, out.clearance = self._swing_clearance(out.states, out.times, passing, p)
         if jacobian:
             self._step_jacobian(x0, hit, x_before, tau, x_t, out, params_jacobian, p)
         return out
 
-    def _clearance(self, x_pass: np.ndarray, ahead_pass: tuple[float, float], after_pass: list,
-                   p: np.ndarray) -> float:
-        """The swing foot's clearance (m, see :class:`Step`) from the grid state ``x_pass`` just
-        before the legs pass, the swing foot's distance ahead of the stance contact there and one
-        integration step later (``ahead_pass``, m), and the heights at the grid samples after that.
-
-        The passing instant (distance ahead zero) is solved inside its integration step by the
-        Illinois variant of regula falsi (Dowell & Jarratt, BIT 11:168, 1971) to _PASS_TOL; the
-        interior minima of the sampled heights are refined by the parabola through the sample and
-        its two neighbours.
-        """
-        height = self._at_passing(x_pass, ahead_pass, p)
-        heights = np.concatenate([[height], *after_pass])
-        # Interior local minima: samples not higher than both neighbours (the first height is the
-        # passing instant itself; the descent onto the guard ends at the strike, not a minimum).
-        lo, mid, hi = heights[:-2], heights[1:-1], heights[2:]
-        minima = np.flatnonzero((mid <= lo) & (mid <= hi))
-        curve = (lo - 2.0 * mid + hi)[minima]
-        # The parabola's vertex where the neighbours are equally spaced (not next to the passing
-        # instant, which lies off the grid) and curved upwards; else the sample itself.
-        refine = (minima >= 1) & (curve > 0.0)
-        values = mid[minima] - np.where(
-            refine, (hi - lo)[minima] ** 2 / (8.0 * np.where(refine, curve, 1.0)), 0.0)
-        return float(min(heights[0], values.min(initial=np.inf)))
-
-    def _at_passing(self, x_pass: np.ndarray, ahead_pass: tuple[float, float], p: np.ndarray) -> float:
-        """The swing foot's height (m) at the instant the legs pass, from the grid state ``x_pass``
-        just before and the swing foot's distance ahead there and one integration step later.
+    def _passing(self, x_pass: np.ndarray, t_pass: float, ahead_pass: tuple[float, float],
+                 p: np.ndarray) -> tuple[float, float, np.ndarray]:
+        """(h, t, x) at the instant the legs pass: the swing foot's height (m), the time (s) and
+        the internal state, from the grid state ``x_pass`` at time ``t_pass`` just before and the
+        swing foot's distance ahead of the stance contact there and one integration step later.
 
         Solved inside that integration step by the Illinois variant of regula falsi (Dowell &
         Jarratt, BIT 11:168, 1971) to _PASS_TOL.
@@ -548,10 +531,10 @@ class Walker:
         a, b = 0.0, self.dt
         fa, fb = ahead_pass
         tol = _PASS_TOL * self.params.leg_length
-        height = math.nan
+        tau = b
         for _ in range(_GUARD_MAXIT):
             tau = b - fb * (b - a) / (fb - fa)
-            height, f = k["guard"](k["step"](x_pass, tau, p)[0], p)[0].ravel()
+            f = float(k["guard"](k["step"](x_pass, tau, p)[0], p)[0][1, 0])
             if abs(f) <= tol:
                 break
             if (f > 0.0) == (fb > 0.0):
@@ -560,59 +543,61 @@ class Walker:
             else:
                 a, fa = b, fb
                 b, fb = tau, f
-        return float(height)
+        x = k["step"](x_pass, tau, p)[0].ravel().copy()
+        return float(k["guard"](x, p)[0][0, 0]), t_pass + tau, x
 
-    def _swing_clearance(self, states: np.ndarray, times: np.ndarray, x_pass: np.ndarray,
-                         ahead_pass: tuple[float, float], p: np.ndarray) -> SwingClearance:
-        """The :class:`SwingClearance` of a recorded step: internal states ``states`` (n, nx) at
-        ``times`` (n,), from just after one heel strike to just before the next.
+    def _swing_clearance(self, states: np.ndarray, times: np.ndarray,
+                         passing: tuple[float, float, np.ndarray],
+                         p: np.ndarray) -> tuple[SwingClearance, float]:
+        """The :class:`SwingClearance` of a recorded step, and its clearance after the legs pass
+        (:attr:`Step.clearance`, m), from the internal states ``states`` (n, nx) at ``times`` (n,),
+        from just after one heel strike to just before the next, and (h, t, x) as the legs pass
+        (:meth:`_passing`).
 
         The interior extrema of the swing foot's height are found on the samples and each is then
-        solved on the flow: dh/dtau = 0 along the integrator's step from the sample before it, over
-        the two sample intervals around it, by the Illinois variant of regula falsi, so that the
-        values do not depend on the integration grid beyond the integrator's own error.
+        solved on the flow (dh/dt = 0, :meth:`_extremum`), so that the values do not depend on the
+        integration grid beyond the integrator's own error.
         """
         k = self.eng.k
-        guard = np.array([k["guard"](x, p)[0].ravel().copy() for x in states])
-        h = guard[:, 0]
+        h = np.array([k["guard"](x, p)[0][0, 0] for x in states])
         lo, mid, hi = h[:-2], h[1:-1], h[2:]
         minima = np.flatnonzero((mid <= lo) & (mid < hi)) + 1
         maxima = np.flatnonzero((mid >= lo) & (mid > hi)) + 1
+        # dh/dtau of the integrator's step at tau = 0 is grad(h) . f(x): the rate itself.
         lift_off_rate = float(k["final"](states[0], 0.0, p)[1][0, 0])
-        apex = max((self._extremum(states, times, i, p) for i in maxima),
-                   default=(float(h.max()), float(times[int(np.argmax(h))]), states[int(np.argmax(h))]),
-                   key=lambda e: e[0])
-        lowest = min((self._extremum(states, times, i, p) for i in minima), default=apex,
-                     key=lambda e: e[0])
-        height, time, x = lowest
-        points = k["points"](x, p)[0]  # (3, 9): column 6 is the swing foot's lowest point
+        top = int(np.argmax(h))
+        apex = max((self._extremum(states, times, i, p)[0] for i in maxima), default=float(h[top]))
+        dips = [self._extremum(states, times, i, p) for i in minima]
+        height, time, x = min([passing, *dips], key=lambda e: e[0])
+        where = "dip" if dips and height < passing[0] else "legs passing"
+        after = min([passing[0], *(d[0] for d in dips if d[1] > passing[1])])
+        c2 = k["points"](x, p)[0][:, 6]  # the swing foot's lowest point, relative to the contact
         heading = 0.0 if self.planar else float(x[0])
-        c2 = points[:, 6]
         ahead = math.cos(heading) * c2[0] + math.sin(heading) * c2[1]
         beside = abs(-math.sin(heading) * c2[0] + math.cos(heading) * c2[1])
-        step_time = float(times[-1])
-        return SwingClearance(
-            minimum=float(height), time=float(time), phase=float(time / step_time),
-            ahead=float(ahead), beside=float(beside),
-            at_passing=self._at_passing(x_pass, ahead_pass, p), apex=float(apex[0]),
-            lift_off_rate=lift_off_rate, dips=len(minima))
+        swing = SwingClearance(
+            minimum=float(height), time=float(time), phase=float(time / times[-1]),
+            ahead=float(ahead), beside=float(beside), at_passing=float(passing[0]),
+            apex=float(apex), lift_off_rate=lift_off_rate, dips=len(minima), where=where)
+        return swing, float(after)
 
     def _extremum(self, states: np.ndarray, times: np.ndarray, i: int,
                   p: np.ndarray) -> tuple[float, float, np.ndarray]:
         """(h, t, x) at the extremum of the swing foot's height next to sample ``i``: the root of
-        dh/dtau along the integrator's step from sample i - 1, tau in [0, t[i+1] - t[i-1]].
-        The sample itself when the rate does not change sign there (a flat stretch)."""
+        dh/dtau along the integrator's step from sample i - 1, tau in [0, t[i+1] - t[i-1]], by
+        the Illinois variant of regula falsi. The sample itself when the rate does not change sign
+        there (a flat stretch)."""
         final = self.eng.k["final"]
         x0 = states[i - 1]
         a, b = 0.0, float(times[i + 1] - times[i - 1])
         fa = float(final(x0, a, p)[1][0, 0])
         fb = float(final(x0, b, p)[1][0, 0])
         if not fa * fb < 0.0:
-            x = states[i]
-            return float(self.eng.k["guard"](x, p)[0][0, 0]), float(times[i]), x.copy()
-        # dh/dtau is the height's rate; its root to _PASS_TOL of a leg length per time unit.
+            return float(self.eng.k["guard"](states[i], p)[0][0, 0]), float(times[i]), states[i].copy()
+        # The rate's root to _PASS_TOL of a leg length per sqrt(l/g): the height is then off by
+        # far less than that (it is stationary there).
         tol = _PASS_TOL * self.params.leg_length / self.params.time_scale
-        tau = a
+        tau = b
         for _ in range(_GUARD_MAXIT):
             tau = b - fb * (b - a) / (fb - fa)
             f = float(final(x0, tau, p)[1][0, 0])

@@ -96,7 +96,15 @@ def _print_gait(report: dict, out=sys.stdout) -> None:
           f"perturbation grows by {report['growth_factor_20_steps']:.3g})", file=out)
     losses = ", ".join(f"{loss:.4g}" for loss in report["collision_loss"])
     print(f"collision loss    {losses} J per heel strike", file=out)
-    print(f"swing clearance   {report['clearance']:.4g} m; scuffs per step {report['scuffs']}", file=out)
+    swing = report["swing_clearance"]
+    where = "as the legs pass" if swing["where"] == "legs passing" else (
+        f"{abs(swing['ahead']):.3g} m {'ahead of' if swing['ahead'] > 0 else 'behind'} the stance foot")
+    print(f"swing clearance   {report['clearance']:.4g} m over the whole swing (lowest at "
+          f"{swing['phase']:.2f} of the step, {where}); {report['clearance_after_passing']:.4g} m "
+          f"after the legs pass; highest {swing['apex']:.4g} m", file=out)
+    print(f"scuffs per step   {report['scuffs']} (swing-foot touches while the legs pass, which the "
+          f"model ignores){'' if report['clearance'] > 0 else '; the swing foot goes below the ramp'}",
+          file=out)
     print(f"can stand         {report['can_stand']}: {report['standing']}", file=out)
 
 

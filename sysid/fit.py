@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import time
 import warnings
 from functools import cache
 
@@ -163,6 +164,8 @@ class FitResult:
         The model's duration of each measured step (s).
     options : dict
         The fit's set-up (model, offsets, mesh, strikes, iteration cap), to repeat it.
+    seconds : float
+        Wall time of the fit (s).
     """
 
     free: list
@@ -195,6 +198,7 @@ class FitResult:
     model_durations: np.ndarray = dataclasses.field(repr=False, default=None)
     options: dict = dataclasses.field(default_factory=dict)
     n_w: int = dataclasses.field(repr=False, default=0)
+    seconds: float = 0.0
 
     def to_json(self) -> dict:
         """JSON-ready dictionary (pipeline.md's fit file: estimates, std, covariance, ...)."""
@@ -402,6 +406,7 @@ def fit(table: TrajectoryTable, params: Params, free, *, model: str = "periodic"
     FitError
         Bad names, unusable measurements or no starting gait (the message says which).
     """
+    clock = time.perf_counter()
     problem, w0 = _setup(table, params, free, model=model, offsets=offsets, n_intervals=n_intervals,
                          degree=degree, z_guess=z_guess, max_iter=max_iter,
                          check_jacobian=check_jacobian, priors=priors, strikes=strikes)
@@ -422,7 +427,9 @@ def fit(table: TrajectoryTable, params: Params, free, *, model: str = "periodic"
                 sigma = _sigma_from(problem.residual_rms(sol), obs)
             if source_c == "estimated from residuals":
                 sigma_c = _contact_sigma(pth, problem.contact_rms(sol, floor=_CONTACT_SD_FLOOR))[0]
-    return problem.result(sol, stats, np.r_[sigma, sigma_c], source, source_c)
+    result = problem.result(sol, stats, np.r_[sigma, sigma_c], source, source_c)
+    result.seconds = time.perf_counter() - clock
+    return result
 
 
 def _setup(table: TrajectoryTable, params: Params, free, *, model, offsets, n_intervals, degree,

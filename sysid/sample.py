@@ -36,7 +36,7 @@ from .likelihood import NO_GAIT, OK, OUTSIDE_PRIOR, LogPosterior
 from .measurement import observations
 from .measurement import path as contact_path
 
-__all__ = ["SampleError", "SampleSummary", "diagnose_chains", "posterior_from_fit", "sample"]
+__all__ = ["SampleError", "SampleSummary", "diagnose_chains", "posterior_from_fit", "sample", "worker_pool"]
 
 #: Integrated autocorrelation times a chain must exceed (emcee's recommendation).
 TAU_FACTOR = 50
@@ -148,7 +148,7 @@ def _initial_ball(estimates, cov, bounds, walkers, rng, post) -> np.ndarray:
 
 
 @contextlib.contextmanager
-def _pool(workers: int, scheduler: str | None):
+def worker_pool(workers: int, scheduler: str | None):
     """A ``map`` provider: None (serial), local processes, or a Dask cluster's executor."""
     if scheduler:
         from distributed import Client
@@ -217,7 +217,7 @@ def sample(report: dict, table: TrajectoryTable, out: str | Path, *, walkers: in
         raise SampleError("steps and ensembles must be >= 1")
     out = Path(out)
     seeds = np.random.SeedSequence(seed).spawn(ensembles)
-    with _pool(workers, scheduler) as pool:
+    with worker_pool(workers, scheduler) as pool:
         for e in range(ensembles):
             backend = emcee.backends.HDFBackend(str(out), name=f"ensemble_{e}")
             rng = np.random.default_rng(seeds[e])

@@ -1,0 +1,88 @@
+"""``toywalk diagnose M.csv --params P.toml --out REPORT_DIR``: what the model gets wrong, the
+cause named, the gain measured (:mod:`toywalk.sysid.discrepancy`)."""
+
+from __future__ import annotations
+
+__all__ = ["cmd_diagnose", "register"]
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser("diagnose", help="find what the model lacks and name the cause")
+    p.add_argument("trajectory", metavar="M.csv", help="the measured walk")
+    p.add_argument("--params", required=True, help="the base model's parameter file")
+    p.add_argument("--free", default="", help="base parameters to fit (comma-separated names)")
+    p.add_argument("--effects", help="restrict the candidate effects (comma-separated names)")
+    p.add_argument("--parameters",
+                   help="held parameters that are candidate causes (comma-separated; default: "
+                        "foot radii, mass offsets, hip width, slope)")
+    p.add_argument("--model", choices=("auto", "periodic", "transient"), default="auto",
+                   help="the base model of the walk: auto tests whether the walk is on its limit "
+                        "cycle (as `toywalk fit`)")
+    p.add_argument("--alpha", type=float, default=None, help="family-wise false-alarm rate")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, default=None,
+                       help="local processes for the candidates' fits (default: one per core, at "
+                            "most four)")
+    where.add_argument("--scheduler", help="address of a Dask distributed scheduler")
+    p.add_argument("--out", required=True, metavar="REPORT_DIR", help="folder for the report")
+    p.set_defaults(func=cmd_diagnose)
+
+
+def cmd_diagnose(args) -> int:
+    import os
+    import sys
+    from pathlib import Path
+
+    from toywalk.model.trajectory import read_trajectory
+    from toywalk.sysid.cli import CommandError, _load, _version
+    from toywalk.sysid.diagnosis_report import write_diagnosis
+    from toywalk.sysid.discrepancy import ALPHA, DiagnoseError, diagnose
+    from toywalk.sysid.fit import FitError, periodicity_test
+    from toywalk.sysid.measurement import MeasurementError
+
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise CommandError(f"--out must name a folder, got the file {out}")
+    if not out.parent.is_dir():
+        raise CommandError(f"output folder's parent does not exist: {out.parent}")
+    params = _load(args.params)
+    try:
+        table = read_trajectory(args.trajectory)
+    except (OSError, ValueError) as err:
+        raise CommandError(str(err)) from err
+
+    def split(text):
+        return [n.strip() for n in text.split(",") if n.strip()] if text else None
+
+    free = split(args.free) or []
+    alpha = ALPHA if args.alpha is None else args.alpha
+    workers = min(4, os.cpu_count() or 1) if args.workers is None else args.workers
+    if workers < 1:
+        raise CommandError(f"--workers must be >= 1, got {workers}")
+
+    def say(message: str) -> None:
+        print(f"... {message}", file=sys.stderr, flush=True)
+
+    try:
+        model = args.model
+        if model == "auto":
+            say("periodicity test (is the walk on the model's limit cycle?)")
+            model = periodicity_test(table, params, free, check_jacobian=False).chosen.model
+        result = diagnose(table, params, free=free, effects=split(args.effects),
+                          parameters=split(args.parameters), alpha=alpha, model=model, progress=say,
+                          workers=workers, scheduler=args.scheduler)
+    except (DiagnoseError, FitError, MeasurementError) as err:
+        raise CommandError(str(err)) from err
+    write_diagnosis(result, out, {"trajectory": str(args.trajectory), "params": str(args.params),
+                                  "free": free, "model": model, "software": _version()})
+    print(f"verdict: {result.verdict}; cause: {result.cause}")
+    print(f"evidence: {result.evidence}")
+    for row in result.ranking[:5]:
+        extra = (f", likelihood ratio {row['lr']:.1f} (p = {row['lr_p']:.2g})" if "lr" in row else "")
+        print(f"  {row['effect']:<32s} score z {row['score_z']:+.2f}{extra}")
+    if result.gain:
+        g = result.gain
+        print(f"held-out chi-square {g['base']:.1f} -> {g['extended']:.1f}; max |eigenvalue| "
+              f"{g['max_abs_eigenvalue']['base']:.4g} -> {g['max_abs_eigenvalue']['extended']:.4g}")
+    print(f"report -> {out / 'report.md'}")
+    return 0

@@ -1,0 +1,157 @@
+"""The report of a discrepancy analysis (``toywalk diagnose``): ``report.json``, ``report.md`` and
+figures, written into a folder.
+
+Figures (matplotlib's object API, the caller's backend untouched):
+
+- ``residuals_by_phase.png``: each signal's mean residual in phase bins of the step with its
+  standard error over the steps, for the base model and the named cause's;
+- ``features.png``: the misfit of each gait feature in standard errors, before and after;
+- ``candidates.png``: every candidate's score-test z and, for those fitted, the likelihood ratio.
+
+Every file is written under a temporary name and renamed into place: a killed run leaves no
+half-written file.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+from toywalk.model.files import atomic_write_json, atomic_write_text
+
+from .diagnostics import _save
+from .discrepancy import Diagnosis
+
+__all__ = ["write_diagnosis"]
+
+
+def write_diagnosis(diagnosis: Diagnosis, folder: Path, inputs: dict | None = None) -> list[Path]:
+    """Write report.json, report.md and the figures into ``folder`` (created if missing)."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    data = diagnosis.to_json()
+    if inputs:
+        data["input"] = inputs
+    written = [_phase_figure(diagnosis, folder), _feature_figure(diagnosis, folder),
+               _candidate_figure(diagnosis, folder)]
+    atomic_write_text(folder / "report.md", _markdown(diagnosis, data))
+    atomic_write_json(folder / "report.json", data)
+    return written + [folder / "report.md", folder / "report.json"]
+
+
+def _phase_figure(d: Diagnosis, folder: Path) -> Path:
+    from matplotlib.figure import Figure
+
+    names = list(d.residuals.phase_mean)
+    fig = Figure(figsize=(8, 1.9 * len(names) + 0.6))
+    axes = fig.subplots(len(names), 1, sharex=True, squeeze=False)
+    bins = d.residuals.bins
+    centre = (np.arange(bins) + 0.5) / bins
+    for i, name in enumerate(names):
+        ax = axes[i, 0]
+        reports = [("base", d.residuals, "C0")]
+        if d.residuals_extended is not None:
+            reports.append((" + ".join(d.causes) or "extended", d.residuals_extended, "C3"))
+        for label, rep, colour in reports:
+            mean = np.degrees(rep.phase_mean[name])
+            se = np.degrees(rep.phase_se[name])
+            ax.errorbar(centre, mean, yerr=2 * se, color=colour, marker="o", ms=3, lw=1, capsize=2,
+                        label=f"{label} (p = {rep.tests[name]['pattern_p']:.2g})")
+        ax.axhline(0.0, color="k", lw=0.6)
+        ax.set_ylabel(f"{name}\n(deg)", fontsize=8)
+        ax.legend(fontsize=7, loc="upper right")
+    axes[-1, 0].set_xlabel("phase of the step (bars: 2 SE over the steps; p: pattern repeated "
+                           "every step)")
+    fig.tight_layout()
+    path = folder / "residuals_by_phase.png"
+    _save(fig, path)
+    return path
+
+
+def _feature_figure(d: Diagnosis, folder: Path) -> Path:
+    from matplotlib.figure import Figure
+
+    keys = [k for k, v in d.features.items() if math.isfinite(v.get("z", math.nan))]
+    fig = Figure(figsize=(8, 0.28 * len(keys) + 1.2))
+    ax = fig.subplots()
+    y = np.arange(len(keys))
+    ax.barh(y + 0.2, [d.features[k]["z"] for k in keys], height=0.4, color="C0", label="base")
+    if d.features_extended is not None:
+        ax.barh(y - 0.2, [d.features_extended[k]["z"] for k in keys], height=0.4, color="C3",
+                label=" + ".join(d.causes))
+    for x in (-3, 3):
+        ax.axvline(x, color="k", ls="--", lw=0.6)
+    ax.set_yticks(y, keys, fontsize=7)
+    ax.set_xlabel("measured minus model, in standard errors over the steps")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    path = folder / "features.png"
+    _save(fig, path)
+    return path
+
+
+def _candidate_figure(d: Diagnosis, folder: Path) -> Path:
+    from matplotlib.figure import Figure
+
+    rows = d.ranking
+    fig = Figure(figsize=(8, 0.3 * len(rows) + 1.2))
+    ax = fig.subplots()
+    y = np.arange(len(rows))[::-1]
+    ax.barh(y + 0.2, [r["score_z"] ** 2 for r in rows], height=0.4, color="C7",
+            label="score statistic z^2 (screening)")
+    ax.barh(y - 0.2, [max(r.get("lr", 0.0), 0.0) for r in rows], height=0.4, color="C2",
+            label="likelihood ratio (fitted)")
+    k = len(rows)
+    from scipy import stats
+
+    ax.axvline(stats.chi2.isf(d.alpha / k, 1), color="k", ls="--", lw=0.8,
+               label=f"alpha / K = {d.alpha:g} / {k}")
+    ax.set_xscale("symlog", linthresh=10)
+    ax.set_yticks(y, [r["effect"] for r in rows], fontsize=7)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    path = folder / "candidates.png"
+    _save(fig, path)
+    return path
+
+
+def _markdown(d: Diagnosis, data: dict) -> str:
+    lines = ["# Discrepancy analysis", "",
+             f"**Verdict:** {d.verdict}. **Cause:** {d.cause if d.cause is not None else 'none'}"
+             + (f" (both: {', '.join(d.causes)})" if len(d.causes) > 1 else "") + ".", "",
+             f"Evidence: {d.evidence}.", "",
+             f"Rule: {d.rule} (alpha = {d.alpha:g}, K = {len(d.ranking)} candidates).", "",
+             "## Base model", "",
+             f"Free: {', '.join(d.base.free) or 'none'}; chi-square {d.base.chi2:.1f} over "
+             f"{d.base.n_residuals} residuals; noise {d.base.noise_source}.", "",
+             "| signal | RMS (deg) | repeated pattern p | Ljung-Box p | runs p |", "|---|---|---|---|---|"]
+    for name, t in d.residuals.tests.items():
+        lines.append(f"| {name} | {math.degrees(t['rms']):.3f} | {t['pattern_p']:.3g} | "
+                     f"{t['ljung_box_p']:.3g} | {t['runs_p']:.3g} |")
+    lines += ["", "![residuals by phase](residuals_by_phase.png)", "", "## Gait features", "",
+              "| feature | measured | model | z (base) | z (extended) |", "|---|---|---|---|---|"]
+    for key, v in d.features.items():
+        after = d.features_extended[key]["z"] if d.features_extended else math.nan
+        lines.append(f"| {key} | {v['measured']:.4g} | {v['model']:.4g} | {v['z']:+.2f} | {after:+.2f} |")
+    lines += ["", "![features](features.png)", "", "## Candidates", "",
+              "| candidate | score z | LR | LR p | held-out gain | estimate [95 %] | log BF |",
+              "|---|---|---|---|---|---|---|"]
+    for r in d.ranking:
+        est = ", ".join(f"{v:.4g} [{r['interval'][k][0]:.4g}, {r['interval'][k][1]:.4g}]"
+                        for k, v in r["estimate"].items())
+        lines.append(f"| {r['effect']} | {r['score_z']:+.2f} | {r.get('lr', math.nan):.1f} | "
+                     f"{r.get('lr_p', math.nan):.2g} | {r.get('held_out_gain', math.nan):.1f} | "
+                     f"{est} | {r.get('log_bayes_factor', math.nan):.1f} |")
+    lines += ["", "![candidates](candidates.png)", ""]
+    if d.gain:
+        g = d.gain
+        lines += ["## Gain", "", f"{g['metric']}: base {g['base']:.1f}, extended {g['extended']:.1f}.",
+                  "", "| signal | held-out RMS base (deg) | extended (deg) |", "|---|---|---|"]
+        for name, v in g["held_out_rms"]["base"].items():
+            lines.append(f"| {name} | {math.degrees(v):.3f} | "
+                         f"{math.degrees(g['held_out_rms']['extended'][name]):.3f} |")
+        eig = g["max_abs_eigenvalue"]
+        lines += ["", f"Predicted stability: max |eigenvalue| {eig['base']:.4g} (base) -> "
+                      f"{eig['extended']:.4g} (extended).", ""]
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,508 @@
+"""Name what the model lacks: fit the base model, find the cause, extend the model, measure the gain.
+
+The base model is the walker of the parameter file with the parameters the user frees. The
+candidate causes are the effects of the library (:data:`toywalk.model.effects.EFFECTS`) and the
+base parameters the analysis holds fixed (:data:`PARAMETERS`): a foot radius fixed at zero is a
+cause as much as a missing damper. Every candidate nests the base model (the base is the candidate
+at its value in the file), so each is one more free parameter.
+
+The procedure, and the rule that decides (``alpha`` is the family-wise false-alarm rate):
+
+1. **Base fit** (:func:`toywalk.sysid.fit.fit`) and its residuals
+   (:mod:`toywalk.sysid.residuals`): a pattern repeated every step, whiteness, gait features.
+2. **Screening by score tests** of every candidate at the base fit (Rao 1948: the gradient of
+   chi-square in the held parameter, projected off the fitted ones; no refit, one Jacobian per
+   candidate: :func:`toywalk.sysid.fit.score_tests`). A candidate whose base value sits on a
+   physical bound (a damper at zero) is tested one-sided.
+3. **Adequate** when no candidate's score p-value is below ``alpha / K`` (K candidates,
+   Bonferroni) and no signal shows a repeated pattern at ``alpha``.
+4. Otherwise **extended fits** of the best-screened candidates (at most :data:`MAX_EXTENDED`), each
+   scored by the likelihood ratio against the base with one noise model (the base fit's: a
+   misfit inflates it, which only makes the test conservative), chi-square on one degree of
+   freedom (a 50:50 mixture with zero for a bounded null: Self & Liang 1987, JASA 82:605), and by
+   **held-out prediction grouped by stride**: the strides are split into two folds (alternate
+   strides), each model is fitted on one fold and predicts the other's angles (samples within a
+   stride are not independent; strides are). A Savage-Dickey ratio at the null value (Dickey
+   1971, Ann. Math. Stat. 42:204; Gaussian posterior of the extended fit, prior normal about the
+   base value with the candidate's :attr:`Candidate.prior_sd`, half-normal on a bounded null)
+   is reported beside.
+5. **A cause is named** when its likelihood ratio's p-value is below ``alpha / K``, it predicts
+   the held-out strides better than the base (summed over both folds), and it beats every other
+   significant candidate by at least :data:`SEPARATION` in chi-square (a likelihood ratio of
+   100 between two one-parameter extensions). Two causes are named when the runner-up, added to
+   the named one, is itself significant at ``alpha / (K - 1)``.
+6. **Unexplained** when the data disagree with the base model but no candidate is decisive, or
+   when the extended model still leaves a pattern repeated every step.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+
+import numpy as np
+from scipy import stats
+from toywalk.model.effects import EFFECTS
+from toywalk.model.parameters import Params
+from toywalk.model.trajectory import SIGNALS, TrajectoryTable
+
+from .fit import FitError, FitResult, fit, fit_bounds, gait_period, score_tests
+from .measurement import observations
+from .residuals import ResidualReport, feature_misfit, residual_report
+from .sample import worker_pool
+
+__all__ = ["ALPHA", "MAX_EXTENDED", "PARAMETERS", "SEPARATION", "Candidate", "Diagnosis",
+           "DiagnoseError", "candidates", "diagnose", "held_out", "held_out_score", "held_out_tasks",
+           "run_fits"]
+
+#: Family-wise false-alarm rate of the verdict.
+ALPHA = 0.01
+#: Base parameters that are candidate causes when the analysis holds them fixed: the foot's shape,
+#: where the balance masses sit, the hip width and the slope.
+PARAMETERS = ("foot_radius", "foot_lateral_radius", "com_offset[0]", "com_offset[1]",
+              "com_offset[2]", "hip_width", "slope")
+#: Candidates fitted in full after screening.
+MAX_EXTENDED = 4
+#: Chi-square margin by which a named cause must beat every other significant candidate.
+SEPARATION = 2.0 * math.log(100.0)
+#: IPOPT's iteration cap for a candidate's fit from the base fit: a candidate that does not
+#: converge from there in this many is not an explanation of the walk (measured: the hidden
+#: effect's fit converges in under 20).
+_CANDIDATE_ITERATIONS = 100
+#: SD of a held-out fold's samples (rad, m): weight 1e-12 of a measured one, so that the fold's
+#: fit ignores them while their residuals are still computed.
+_HELD_OUT_SD = 1e3
+
+
+class DiagnoseError(ValueError):
+    """The analysis cannot be made (no base fit, no candidates); the message says why."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Candidate:
+    """One candidate cause: a parameter-file name freed from its base value.
+
+    Attributes
+    ----------
+    name : str
+        ``effects.<name>`` or a parameter name.
+    kind : str
+        'effect' or 'parameter'.
+    base : float
+        Its value in the base model.
+    bounds : tuple of float
+        Physical bounds (the fit's).
+    side : int
+        +1 when the base value is on the lower bound (only increases are possible), -1 on the
+        upper one, 0 otherwise.
+    prior_sd : float
+        Scale of the Savage-Dickey prior: an effect's ``typical`` magnitude; a tenth of the leg
+        length for lengths; 0.02 rad for the slope.
+    breaks_symmetry : bool
+    """
+
+    name: str
+    kind: str
+    base: float
+    bounds: tuple
+    side: int
+    prior_sd: float
+    breaks_symmetry: bool
+
+
+def candidates(params: Params, free=(), effects=None, parameters=None) -> list[Candidate]:
+    """The candidate causes: the library's effects (or those named in ``effects``) and the
+    parameters of :data:`PARAMETERS` (or ``parameters``), less the free ones and those that
+    cannot move (both bounds at the base value)."""
+    names = []
+    chosen = list(EFFECTS) if effects is None else list(effects)
+    for name in chosen:
+        if name.removeprefix("effects.") not in EFFECTS:
+            raise DiagnoseError(f"unknown effect {name!r}; the library has {', '.join(EFFECTS)}")
+        names.append("effects." + name.removeprefix("effects."))
+    names += list(PARAMETERS if parameters is None else parameters)
+    out = []
+    for name in names:
+        if name in free:
+            continue
+        low, high = fit_bounds(params, list(free) + [name], name)
+        value = params.get(name)
+        tiny = 1e-12 * max(abs(value), 1.0)
+        if high - low <= tiny:
+            continue
+        side = 1 if value - low <= tiny else (-1 if high - value <= tiny else 0)
+        if name.startswith("effects."):
+            effect = EFFECTS[name.split(".", 1)[1]]
+            kind, prior, breaks = "effect", abs(effect.typical), effect.breaks_symmetry
+        else:
+            kind = "parameter"
+            prior = 0.02 if name == "slope" else 0.1 * params.leg_length
+            breaks = False
+        out.append(Candidate(name, kind, float(value), (float(low), float(high)), side, prior, breaks))
+    if not out:
+        raise DiagnoseError("no candidate causes left to test (all free or fixed by their bounds)")
+    return out
+
+
+@dataclasses.dataclass
+class Diagnosis:
+    """The analysis (:func:`diagnose`); :meth:`to_json` is ``report.json`` (pipeline.md).
+
+    Attributes
+    ----------
+    verdict : str
+        'adequate' or 'discrepancy'.
+    cause : str or None
+        The named cause, ``"unexplained"``, or None (adequate).
+    causes : list of str
+        Every named cause (two when two are decisive).
+    ranking : list of dict
+        Every candidate, best first: screening score, and for those fitted the likelihood ratio,
+        held-out gain, estimate with its 95 % interval and Savage-Dickey ratio.
+    gain : dict
+        Held-out chi-square of the base and of the extended model, per signal RMS before and
+        after, the change in predicted stability and in the gait features.
+    evidence : str
+        What in the residuals pointed to the cause.
+    base : FitResult
+    extended : dict of str to FitResult
+    residuals, residuals_extended : ResidualReport
+    features, features_extended : dict
+        :func:`toywalk.sysid.residuals.feature_misfit` of the base and the named model.
+    rule : str
+    alpha : float
+    seconds : dict
+        Wall time of each stage (s): the base fit, the screening, each candidate's fit (its CPU
+        time in a worker), the held-out folds, the pair fit, and the total.
+    """
+
+    verdict: str
+    cause: str | None
+    causes: list
+    ranking: list
+    gain: dict
+    evidence: str
+    base: FitResult
+    extended: dict
+    residuals: ResidualReport
+    residuals_extended: ResidualReport | None
+    features: dict
+    features_extended: dict | None
+    rule: str
+    alpha: float
+    seconds: dict = dataclasses.field(default_factory=dict)
+
+    def to_json(self) -> dict:
+        return {
+            "verdict": self.verdict, "cause": self.cause, "causes": self.causes,
+            "ranking": self.ranking, "gain": self.gain, "evidence": self.evidence,
+            "rule": self.rule, "alpha": self.alpha, "seconds": self.seconds,
+            "base": {"free": self.base.free, "estimates": self.base.estimates, "std": self.base.std,
+                     "chi2": self.base.chi2, "n_residuals": self.base.n_residuals,
+                     "noise_sd": self.base.noise_sd, "noise_source": self.base.noise_source,
+                     "gait": self.base.gait, "model": self.base.model},
+            "residuals": self.residuals.to_json(),
+            "residuals_extended": self.residuals_extended.to_json() if self.residuals_extended else None,
+            "features": self.features, "features_extended": self.features_extended,
+        }
+
+
+RULE = ("adequate: no candidate's score test below alpha/K and no signal with a pattern repeated "
+        "every step (Hotelling, alpha over the signals); a cause is named when its likelihood "
+        "ratio is below alpha/K, it predicts held-out strides better than the base, and it beats "
+        f"every other significant candidate by {SEPARATION:.1f} in chi-square; unexplained "
+        "otherwise, or when the extended model still leaves a repeated pattern")
+
+
+def _p_value(lr: float, candidate: Candidate) -> float:
+    """Likelihood-ratio p-value on one degree of freedom; a 50:50 mixture for a bounded null."""
+    p = float(stats.chi2.sf(max(lr, 0.0), 1))
+    return 0.5 * p if candidate.side else p
+
+
+def _savage_dickey(estimate: float, se: float, candidate: Candidate) -> float:
+    """log Bayes factor of the extended model against the base (positive favours the effect):
+    prior over posterior density at the base value, both Gaussian (half-Gaussian on the allowed
+    side of a bounded null)."""
+    if not (se > 0 and math.isfinite(estimate)):
+        return math.nan
+    v, s = candidate.base, candidate.prior_sd
+    log_prior = stats.norm.logpdf(v, v, s) + (math.log(2.0) if candidate.side else 0.0)
+    log_post = stats.norm.logpdf(v, estimate, se)
+    if candidate.side:  # the posterior truncated to the allowed side
+        u = (v - estimate) / se
+        mass = stats.norm.sf(u) if candidate.side > 0 else stats.norm.cdf(u)
+        log_post -= math.log(max(mass, 1e-300))
+    return float(log_prior - log_post)
+
+
+def _strides(n_steps: int) -> np.ndarray:
+    """Each measured step's fold: alternate strides (pairs of steps) go to folds 0 and 1."""
+    return (np.arange(n_steps) // 2) % 2
+
+
+def held_out_tasks(table: TrajectoryTable, params: Params, free, noise: dict,
+                   warm: FitResult | None = None, **fit_options) -> list[dict]:
+    """The two fits of held-out prediction grouped by stride (:func:`held_out`), as keyword
+    arguments of :func:`toywalk.sysid.fit.fit`: alternate strides form two folds (:func:`_strides`),
+    each fit sees one fold. The held-out samples stay in the fit with a huge SD
+    (:data:`_HELD_OUT_SD`), so the model is read at them without their weighing in; heel strikes
+    and contact positions of the whole walk remain data. ``warm``, a fit of the whole walk, is
+    where each fold's fit starts."""
+    obs = observations(table)
+    fold_of_step = _strides(obs.n_steps)
+    sd = {name: float(noise[name]) for name in SIGNALS if name in noise}
+    return [dict(table=_masked(table, obs, np.flatnonzero(fold_of_step == fold), sd), params=params,
+                 free=list(free), noise_sd=None, check_jacobian=False, warm=warm, **fit_options)
+            for fold in (0, 1)]
+
+
+def held_out_score(table: TrajectoryTable, fits: list, noise: dict) -> dict:
+    """Score the two fold fits of :func:`held_out_tasks`: the held-out chi-square (with ``noise``)
+    overall and per signal, the held-out RMS per signal, and whether both fits converged."""
+    obs = observations(table)
+    fold_of_step = _strides(obs.n_steps)
+    if any(isinstance(f, str) for f in fits):
+        return {"chi2": math.nan, "chi2_by_signal": {}, "rms": {}, "success": False, "n": 0,
+                "reason": "; ".join(f for f in fits if isinstance(f, str))}
+    chi2, per_signal, squares, counts = 0.0, {}, {}, {}
+    for fold, result in zip((0, 1), fits, strict=True):
+        held = np.isin(obs.step, np.flatnonzero(fold_of_step == fold))
+        for s_i, name in enumerate(SIGNALS):
+            sel = held & (obs.signal == s_i)
+            if not np.any(sel):
+                continue
+            r = result.residuals[sel]
+            c = float(np.sum((r / float(noise[name])) ** 2))
+            chi2 += c
+            per_signal[name] = per_signal.get(name, 0.0) + c
+            squares[name] = squares.get(name, 0.0) + float(np.sum(r**2))
+            counts[name] = counts.get(name, 0) + int(sel.sum())
+    rms = {k: math.sqrt(squares[k] / counts[k]) for k in squares}
+    return {"chi2": chi2, "chi2_by_signal": per_signal, "rms": rms,
+            "success": all(f.success for f in fits), "n": int(sum(counts.values()))}
+
+
+def held_out(table: TrajectoryTable, params: Params, free, noise: dict, warm: FitResult | None = None,
+             workers: int = 1, **fit_options) -> dict:
+    """Held-out prediction grouped by stride: fit on one fold of strides, predict the other's
+    angles, both ways round (:func:`held_out_tasks`, :func:`held_out_score`)."""
+    tasks = held_out_tasks(table, params, free, noise, warm, **fit_options)
+    return held_out_score(table, run_fits(tasks, workers), noise)
+
+
+def run_fits(tasks: list[dict], workers: int = 1, scheduler: str | None = None) -> list:
+    """:func:`toywalk.sysid.fit.fit` of each task's keyword arguments: in this process, in
+    ``workers`` local processes, or on a Dask cluster (``scheduler``); a fit that cannot be set
+    up gives its reason (a string) in its place."""
+    if len(tasks) <= 1 or (workers <= 1 and not scheduler):
+        return [_fit_or_reason(t) for t in tasks]
+    with worker_pool(min(workers, len(tasks)), scheduler) as pool:
+        return list(pool.map(_fit_or_reason, tasks))
+
+
+def _fit_or_reason(task: dict):
+    try:
+        return fit(**task)
+    except FitError as err:
+        return str(err)
+
+
+def _masked(table: TrajectoryTable, obs, held_steps: np.ndarray, sd: dict) -> TrajectoryTable:
+    """The walk with SD columns: the noise SD everywhere, :data:`_HELD_OUT_SD` in the held-out
+    steps."""
+    bounds = np.r_[obs.step_start, obs.step_end[-1]]
+    step = np.searchsorted(bounds, table.time, side="right") - 1
+    held = np.isin(step, held_steps)
+    signals = dict(table.signals)
+    for name in SIGNALS:
+        if name in signals:
+            signals[f"{name}_sd"] = np.where(held, _HELD_OUT_SD, sd[name])
+    events = [dict(e) for e in table.events]
+    return TrajectoryTable(table.time, signals, table.stance, events, dict(table.metadata))
+
+
+def diagnose(table: TrajectoryTable, params: Params, *, free=(), effects=None, parameters=None,
+             alpha: float = ALPHA, model: str = "periodic", progress=None, workers: int = 1,
+             scheduler: str | None = None, **fit_options) -> Diagnosis:
+    """Find what the base model lacks (module docstring).
+
+    Parameters
+    ----------
+    table : TrajectoryTable
+        The measured walk.
+    params : Params
+        The base model; ``free`` its parameters to fit.
+    effects : sequence of str, optional
+        Restrict the candidate effects (default: the whole library).
+    parameters : sequence of str, optional
+        The held parameters that are candidates (default :data:`PARAMETERS`).
+    alpha : float
+        Family-wise false-alarm rate.
+    model : {'periodic', 'transient'}
+        The base model of the walk (:func:`toywalk.sysid.fit.periodicity_test` says which).
+    progress : callable, optional
+        Called with one line of text at each stage.
+    workers, scheduler
+        The candidates' fits and the held-out folds in ``workers`` local processes or on a Dask
+        cluster (:func:`run_fits`).
+    **fit_options
+        Passed to every fit (``offsets``, ``priors``, ``strikes``, ...).
+    """
+    say = progress or (lambda _msg: None)
+    clock = time.perf_counter()
+    seconds: dict = {}
+    if not 0 < alpha < 1:
+        raise DiagnoseError(f"alpha must be in (0, 1), got {alpha!r}")
+    free = list(free)
+    cands = candidates(params, free, effects, parameters)
+    k = len(cands)
+    options = dict(fit_options, model=model)
+    candidate_options = dict(options, max_iter=min(options.get("max_iter", 500), _CANDIDATE_ITERATIONS))
+    say(f"base fit ({', '.join(free) or 'no free parameters'})")
+    base = fit(table, params, free, check_jacobian=False, **options)
+    seconds["base"] = base.seconds
+    if not base.success:
+        raise DiagnoseError(f"the base model does not fit the walk ({base.status}); "
+                            + "; ".join(base.warnings))
+    obs = observations(table)
+    res_base = residual_report(obs, base.residuals, alpha=alpha)
+    sigma = base.sigma[:len(obs.value)]
+    features = feature_misfit(obs, obs.value, obs.value + base.residuals, base.model_durations,
+                              sigma=sigma, rng=0)
+    noise = dict(base.noise_sd)
+    noise_opt = {} if base.noise_source == "file" else {"noise_sd": noise}
+    say(f"screening {k} candidates by score tests")
+    lap = time.perf_counter()
+    by_period: dict[int, list[Candidate]] = {}
+    for c in cands:
+        by_period.setdefault(gait_period(params, free + [c.name]), []).append(c)
+    scores = {}
+    for group in by_period.values():
+        scores.update(score_tests(table, base, [c.name for c in group]))
+    ranking = []
+    for c in cands:
+        s = scores[c.name]
+        z = s["z"]
+        p = float(stats.norm.sf(c.side * z)) if c.side else float(2 * stats.norm.sf(abs(z)))
+        ranking.append({"effect": c.name, "kind": c.kind, "score_z": z, "score_p": p,
+                        "linear_estimate": c.base + s["step"], "linear_se": s["se"]})
+    ranking.sort(key=lambda r: r["score_p"])
+    seconds["screening"] = time.perf_counter() - lap
+    level = alpha / k
+    significant = [r for r in ranking if r["score_p"] < level]
+    evidence = _evidence(res_base, features, ranking[:3])
+    if not significant and not res_base.systematic:
+        seconds["total"] = time.perf_counter() - clock
+        return Diagnosis("adequate", None, [], ranking, {}, evidence, base, {}, res_base, None,
+                         features, None, RULE, alpha, seconds)
+    to_fit = (significant or ranking[:2])[:MAX_EXTENDED]
+    extended = {}
+    by_name = {c.name: c for c in cands}
+    say(f"extended fits: {', '.join(r['effect'] for r in to_fit)}")
+    tasks = [dict(table=table, params=base.params, free=free + [row["effect"]], check_jacobian=False,
+                  warm=base, **candidate_options, **noise_opt) for row in to_fit]
+    for row, ext in zip(to_fit, run_fits(tasks, workers, scheduler), strict=True):
+        name = row["effect"]
+        if isinstance(ext, str):
+            row.update(fitted=False, reason=ext)
+            continue
+        extended[name] = ext
+        seconds[name] = ext.seconds
+        lr = base.chi2 - ext.chi2
+        est, se = ext.estimates[name], ext.std[name]
+        row.update(fitted=bool(ext.success), status=ext.status, lr=lr,
+                   lr_p=_p_value(lr, by_name[name]), score=lr,
+                   estimate={name: est}, interval={name: [est - 1.96 * se, est + 1.96 * se]},
+                   std=se, log_bayes_factor=_savage_dickey(est, se, by_name[name]),
+                   max_abs_eigenvalue=ext.gait.get("max_abs_eigenvalue"))
+    fitted = sorted((r for r in to_fit if r.get("fitted")), key=lambda r: -r["lr"])
+    passing = [r for r in fitted if r["lr_p"] < level]
+    held = {}
+    cause, causes, named = "unexplained", [], None
+    if passing:
+        best = passing[0]
+        say(f"held-out prediction by stride: base and {best['effect']}")
+        tasks = (held_out_tasks(table, base.params, free, noise, base, **options)
+                 + held_out_tasks(table, extended[best["effect"]].params, free + [best["effect"]],
+                                  noise, extended[best["effect"]], **options))
+        lap = time.perf_counter()
+        fits = run_fits(tasks, workers, scheduler)
+        seconds["held_out"] = time.perf_counter() - lap
+        held["base"] = held_out_score(table, fits[:2], noise)
+        held[best["effect"]] = held_out_score(table, fits[2:], noise)
+        gain = held["base"]["chi2"] - held[best["effect"]]["chi2"]
+        best["held_out_gain"] = gain
+        runner = passing[1] if len(passing) > 1 else None
+        separated = runner is None or best["lr"] - runner["lr"] >= SEPARATION
+        if gain > 0 and separated:
+            named = best
+            causes = [best["effect"]]
+            if runner is not None:
+                say(f"pair fit: {best['effect']} + {runner['effect']}")
+                pair = fit(table, extended[best["effect"]].params,
+                           free + [best["effect"], runner["effect"]], check_jacobian=False,
+                           warm=extended[best["effect"]], **candidate_options, **noise_opt)
+                seconds["pair"] = pair.seconds
+                lr_pair = extended[best["effect"]].chi2 - pair.chi2
+                if pair.success and _p_value(lr_pair, by_name[runner["effect"]]) < alpha / max(k - 1, 1):
+                    causes.append(runner["effect"])
+                    extended["+".join(causes)] = pair
+    res_ext, features_ext, gain_block = None, None, {}
+    if named is not None:
+        ext = extended["+".join(causes)] if len(causes) > 1 else extended[causes[0]]
+        res_ext = residual_report(obs, ext.residuals, bins=res_base.bins, alpha=alpha)
+        features_ext = feature_misfit(obs, obs.value, obs.value + ext.residuals, ext.model_durations,
+                                      sigma=sigma, rng=0)
+        h_base, h_ext = held["base"], held[named["effect"]]
+        gain_block = {
+            "metric": "held-out chi-square (two folds of alternate strides)",
+            "base": h_base["chi2"], "extended": h_ext["chi2"],
+            "held_out_rms": {"base": h_base["rms"], "extended": h_ext["rms"]},
+            "chi2": {"base": base.chi2, "extended": ext.chi2},
+            "max_abs_eigenvalue": {"base": base.gait.get("max_abs_eigenvalue"),
+                                   "extended": ext.gait.get("max_abs_eigenvalue")},
+            "stable": {"base": base.gait.get("stable"), "extended": ext.gait.get("stable")},
+            "features": {key: {"base": features[key]["z"], "extended": features_ext[key]["z"]}
+                         for key in features},
+        }
+        cause = causes[0]
+        if res_ext.systematic:
+            cause = "unexplained"
+            evidence += (f"; {' and '.join(causes)} improve the fit but leave a pattern repeated every "
+                         f"step in {', '.join(res_ext.systematic)}")
+    elif passing:
+        best = passing[0]
+        if best.get("held_out_gain", 0.0) <= 0:
+            evidence += f"; {best['effect']} fits better but does not predict held-out strides better"
+        else:
+            evidence += (f"; {best['effect']} and {passing[1]['effect']} explain the data about "
+                         f"equally well (chi-square {best['lr']:.1f} against {passing[1]['lr']:.1f})")
+    else:
+        evidence += "; no candidate's likelihood ratio is significant"
+    for row in ranking:
+        row.setdefault("score", row["score_z"] ** 2)
+        row.setdefault("estimate", {})
+        row.setdefault("interval", {})
+    ranking.sort(key=lambda r: (-r["lr"] if "lr" in r else math.inf, r["score_p"]))
+    named_causes = causes if cause != "unexplained" else []
+    return Diagnosis("discrepancy", cause if causes else "unexplained", named_causes, ranking,
+                     gain_block, evidence, base, extended, res_base, res_ext, features,
+                     features_ext, RULE, alpha, dict(seconds, total=time.perf_counter() - clock))
+
+
+def _evidence(res: ResidualReport, features: dict, top: list) -> str:
+    """What the base residuals show, in a sentence."""
+    parts = []
+    if res.systematic:
+        parts.append("a pattern repeated every step in " + ", ".join(
+            f"{n} (p = {res.tests[n]['pattern_p']:.2g})" for n in res.systematic))
+    strong = sorted(((abs(v["z"]), k) for k, v in features.items()
+                     if math.isfinite(v.get("z", math.nan)) and abs(v["z"]) > 3), reverse=True)
+    if strong:
+        parts.append("gait features missed: " + ", ".join(
+            f"{k} by {features[k]['z']:+.1f} SE" for _, k in strong[:4]))
+    parts.append("score tests point to " + ", ".join(
+        f"{r['effect']} (z = {r['score_z']:+.1f})" for r in top))
+    return "; ".join(parts)

@@ -1,0 +1,307 @@
+"""What the model gets wrong: residual diagnostics a person can read.
+
+Three questions are asked of a fit's residuals (model minus measurement, per observation of
+:class:`toywalk.sysid.measurement.Observations`), component by component in the model's own
+description (:data:`COMPONENTS`: lean and steer mirrored for a step with the right leg in stance,
+and the pitches as the stance and the swing leg's, whichever leg that is), because a model that
+lacks some physics misses the same way in every step *of that description*:
+
+- **Is there a pattern that repeats every step?** Each step's residuals are averaged in ``bins``
+  bins of the step phase (a steps-by-bins table); a repeated-measures analysis of variance tests
+  the bins' effect against the steps-by-bins interaction, with the Greenhouse-Geisser correction
+  of its degrees of freedom for bins that are correlated or unequally noisy (Greenhouse & Geisser
+  1959, Psychometrika 24:95). The steps are the units, so the test needs no noise SD, and a step's
+  own offset (noise correlated within a step) is not a pattern; it is the verdict's test of
+  "systematic". (A constant offset over the whole walk is the fit's nuisance offset, not
+  tested.)
+- **Are the residuals white?** Ljung-Box on the first ``lags`` autocorrelations of the residual
+  series in time (Ljung & Box 1978, Biometrika 65:297) and the Wald-Wolfowitz runs test of their
+  signs (too few runs: residuals that stay on one side). Both assume independent measurement
+  errors: a tracker's errors correlated over a few frames fail them without any model error, so
+  they are reported, with their figure, but do not decide.
+- **Which gait features does the model miss?** Features of each measured step (its duration,
+  lean and steer ranges, mean steer, pitch ranges), computed alike from the measurement and the
+  model at the same samples, then their mean difference over the steps in units of its standard
+  error from the step-to-step scatter; plus left-right differences (the same features, right
+  steps against left ones), which only a symmetry-breaking cause can produce.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import warnings
+
+import numpy as np
+from scipy import stats
+from toywalk.model.trajectory import SIGNALS
+
+from .measurement import Observations
+
+__all__ = ["COMPONENTS", "FEATURES", "ResidualReport", "feature_misfit", "residual_report", "step_features"]
+
+#: Per-step gait features (:func:`step_features`), with their unit.
+FEATURES = {"duration": "s", "lean_range": "rad", "steer_range": "rad", "steer_mean": "rad",
+            "stance_pitch_range": "rad", "swing_pitch_range": "rad"}
+#: The residual components tested: lean and steer mirrored back to the model's description
+#: (left leg in stance), the stance leg's pitch and the swing leg's.
+COMPONENTS = ("lean", "steer", "stance_pitch", "swing_pitch")
+#: Ljung-Box lags, in samples.
+_LAGS = 10
+#: Phase bins of the repeated-pattern test.
+_BINS = 10
+#: Degree of the smooth curve whose range is a step's feature (:func:`step_features`).
+_SMOOTH_DEGREE = 6
+
+
+@dataclasses.dataclass
+class ResidualReport:
+    """Residual tests per signal (:func:`residual_report`).
+
+    Attributes
+    ----------
+    tests : dict of str to dict
+        Per component (:data:`COMPONENTS`): ``pattern_f``, ``pattern_p`` (the test of a pattern
+        repeated every step), ``epsilon`` (its Greenhouse-Geisser factor), ``ljung_box_q``,
+        ``ljung_box_p``, ``runs_z``, ``runs_p`` (too few runs), ``rms``
+        (rad), ``n`` (observations).
+    phase_mean, phase_se : dict of str to ndarray, shape (bins,)
+        Per component: the mean residual in each phase bin over the steps and its standard error
+        from the step-to-step scatter (rad).
+    bins : int
+    systematic : list of str
+        Components whose repeated pattern is significant at ``alpha`` over all of them
+        (Bonferroni).
+    alpha : float
+    """
+
+    tests: dict
+    phase_mean: dict
+    phase_se: dict
+    bins: int
+    systematic: list
+    alpha: float
+
+    def to_json(self) -> dict:
+        return {"tests": self.tests, "bins": self.bins, "systematic": self.systematic,
+                "alpha": self.alpha,
+                "phase_mean": {k: v.tolist() for k, v in self.phase_mean.items()},
+                "phase_se": {k: v.tolist() for k, v in self.phase_se.items()}}
+
+
+def _components(obs: Observations, residuals: np.ndarray) -> dict:
+    """Each component's selection of observations and its residuals in the model's description."""
+    index = {name: i for i, name in enumerate(SIGNALS)}
+    side = np.where(obs.stance[obs.step] == "L", 1.0, -1.0)
+    left_stance = obs.stance[obs.step] == "L"
+    out = {}
+    for name in ("lean", "steer"):
+        out[name] = (obs.signal == index[name], residuals * side)
+    own_left = obs.signal == index["pitch_left"]
+    own_right = obs.signal == index["pitch_right"]
+    out["stance_pitch"] = ((own_left & left_stance) | (own_right & ~left_stance), residuals)
+    out["swing_pitch"] = ((own_left & ~left_stance) | (own_right & left_stance), residuals)
+    return out
+
+
+def _step_bin_means(obs: Observations, residuals: np.ndarray, sel: np.ndarray, bins: int) -> np.ndarray:
+    """Mean residual of each (step, phase bin), shape (n_steps, bins), NaN where empty."""
+    b = np.minimum((obs.phase[sel] * bins).astype(int), bins - 1)
+    k = obs.step[sel]
+    total = np.zeros((obs.n_steps, bins))
+    count = np.zeros((obs.n_steps, bins))
+    np.add.at(total, (k, b), residuals[sel])
+    np.add.at(count, (k, b), 1.0)
+    with np.errstate(invalid="ignore"):
+        return np.where(count > 0, total / np.maximum(count, 1), np.nan)
+
+
+def _pattern(x: np.ndarray) -> tuple[float, float, float]:
+    """Repeated-measures ANOVA of a steps-by-bins table ``x`` (n, p): the bins' F against the
+    interaction, its Greenhouse-Geisser epsilon, and the corrected p-value; NaNs with fewer than
+    three complete steps."""
+    x = x[np.all(np.isfinite(x), axis=1)]
+    n, p = x.shape
+    if n < 3 or p < 2:
+        return math.nan, math.nan, math.nan
+    bin_mean, step_mean, grand = x.mean(axis=0), x.mean(axis=1), x.mean()
+    ss_bins = n * float(np.sum((bin_mean - grand) ** 2))
+    inter = x - step_mean[:, None] - bin_mean[None, :] + grand
+    ss_err = float(np.sum(inter**2))
+    df_bins, df_err = p - 1, (n - 1) * (p - 1)
+    if ss_err <= 0:
+        return math.inf, 1.0, 0.0
+    f = (ss_bins / df_bins) / (ss_err / df_err)
+    centre = np.eye(p) - 1.0 / p
+    cov = centre @ np.cov(x, rowvar=False) @ centre
+    eps = float(np.trace(cov) ** 2 / (df_bins * np.trace(cov @ cov)))
+    eps = min(max(eps, 1.0 / df_bins), 1.0)
+    return float(f), eps, float(stats.f.sf(f, eps * df_bins, eps * df_err))
+
+
+def _ljung_box(series: np.ndarray, lags: int) -> tuple[float, float]:
+    """Ljung-Box Q of the first ``lags`` autocorrelations and its chi-square p-value."""
+    x = series - series.mean()
+    n = len(x)
+    lags = min(lags, n - 2)
+    if lags < 1:
+        return math.nan, math.nan
+    denom = float(x @ x)
+    acf = np.array([float(x[k:] @ x[:-k]) / denom for k in range(1, lags + 1)])
+    q = float(n * (n + 2) * np.sum(acf**2 / (n - np.arange(1, lags + 1))))
+    return q, float(stats.chi2.sf(q, lags))
+
+
+def _runs(series: np.ndarray) -> tuple[float, float]:
+    """Wald-Wolfowitz runs test of the signs: z and the one-sided p-value of too few runs."""
+    signs = series[series != 0] > 0
+    n1, n2 = int(signs.sum()), int((~signs).sum())
+    n = n1 + n2
+    if n1 == 0 or n2 == 0:
+        return -math.inf, 0.0
+    runs = 1 + int(np.count_nonzero(signs[1:] != signs[:-1]))
+    mean = 2.0 * n1 * n2 / n + 1.0
+    var = 2.0 * n1 * n2 * (2.0 * n1 * n2 - n) / (n**2 * (n - 1.0))
+    z = (runs - mean) / math.sqrt(max(var, 1e-300))
+    return float(z), float(stats.norm.cdf(z))
+
+
+def residual_report(obs: Observations, residuals: np.ndarray, bins: int | None = None,
+                    alpha: float = 0.01) -> ResidualReport:
+    """Test each signal's residuals (module docstring).
+
+    Parameters
+    ----------
+    obs : Observations
+    residuals : ndarray, shape (n_obs,)
+        Model minus measurement (rad).
+    bins : int, optional
+        Phase bins (default :data:`_BINS`).
+    alpha : float
+        Level of the "systematic" verdict over all signals together.
+    """
+    residuals = np.asarray(residuals, float)
+    if residuals.shape != obs.value.shape:
+        raise ValueError(f"residuals must have shape {obs.value.shape}, got {residuals.shape}")
+    bins = _BINS if bins is None else int(bins)
+    tests, means, ses, pattern_p = {}, {}, {}, {}
+    for name, (sel, values) in _components(obs, residuals).items():
+        if not np.any(sel):
+            continue
+        per_step = _step_bin_means(obs, values, sel, bins)
+        f, eps, p_pattern = _pattern(per_step)
+        with warnings.catch_warnings():  # a phase bin no step reached is NaN, on purpose
+            warnings.simplefilter("ignore", RuntimeWarning)
+            count = np.sum(np.isfinite(per_step), axis=0)
+            means[name] = np.nanmean(per_step, axis=0)
+            ses[name] = np.nanstd(per_step, axis=0, ddof=1) / np.sqrt(np.maximum(count, 1))
+        order = np.argsort(obs.time[sel], kind="stable")
+        series = values[sel][order]
+        q, p_lb = _ljung_box(series, _LAGS)
+        z, p_runs = _runs(series)
+        tests[name] = {"pattern_f": f, "epsilon": eps, "pattern_p": p_pattern, "ljung_box_q": q,
+                       "ljung_box_p": p_lb, "runs_z": z, "runs_p": p_runs,
+                       "rms": float(np.sqrt(np.mean(series**2))), "n": int(sel.sum())}
+        pattern_p[name] = p_pattern
+    level = alpha / max(len(pattern_p), 1)
+    systematic = [n for n, p in pattern_p.items() if math.isfinite(p) and p < level]
+    return ResidualReport(tests=tests, phase_mean=means, phase_se=ses, bins=bins,
+                          systematic=systematic, alpha=alpha)
+
+
+def step_features(obs: Observations, values: np.ndarray) -> dict:
+    """Per-step gait features of angle ``values`` at the observations (measured, or a model's at
+    the same samples), each shape (n_steps,), NaN where a step lacks the signal: the step's
+    duration (measured strikes), the range and mean of the lean and steer, the stance and swing
+    pitch ranges. Lean and steer are in the physical description (not mirrored).
+
+    Ranges are those of a smooth curve through each step's samples (Legendre polynomial of degree
+    :data:`_SMOOTH_DEGREE` in the phase, by least squares): the raw samples' range grows with the
+    noise (by about 4 SDs for 100 samples), so a noisy measurement would always seem to swing
+    more than a noiseless model."""
+    values = np.asarray(values, float)
+    out = {k: np.full(obs.n_steps, np.nan) for k in FEATURES}
+    out["duration"] = obs.durations.copy()
+    index = {name: i for i, name in enumerate(SIGNALS)}
+    grid = np.linspace(-1.0, 1.0, 101)
+    for k in range(obs.n_steps):
+        in_step = obs.step == k
+        stance = "pitch_left" if obs.stance[k] == "L" else "pitch_right"
+        swing = "pitch_right" if stance == "pitch_left" else "pitch_left"
+        for name, key in (("lean", "lean_range"), ("steer", "steer_range"),
+                          (stance, "stance_pitch_range"), (swing, "swing_pitch_range")):
+            sel = in_step & (obs.signal == index[name])
+            if np.count_nonzero(sel) <= 2 * _SMOOTH_DEGREE:
+                continue
+            x = 2.0 * obs.phase[sel] - 1.0
+            coef = np.polynomial.legendre.legfit(x, values[sel], _SMOOTH_DEGREE)
+            curve = np.polynomial.legendre.legval(grid[(grid >= x.min()) & (grid <= x.max())], coef)
+            out[key][k] = np.ptp(curve)
+            if name == "steer":
+                out["steer_mean"][k] = values[sel].mean()
+    return out
+
+
+def feature_misfit(obs: Observations, measured: np.ndarray, model: np.ndarray,
+                   model_durations: np.ndarray | None = None, sigma: np.ndarray | None = None,
+                   replicates: int = 20, rng=None) -> dict:
+    """Each feature's misfit: measured minus model, mean over the steps, its standard error from
+    the step-to-step scatter of the differences, and ``z`` their ratio; then the left-right
+    difference of the same (right steps minus left steps) as ``<feature>_right_minus_left``.
+
+    ``model_durations`` (n_steps,), the model's step durations, replaces the measured ones for
+    the model's ``duration`` feature (otherwise the two are the same measured strikes). With
+    ``sigma`` (n_obs,), the noise SD of each observation, the model's features are those of the
+    model plus simulated noise (the mean over ``replicates`` draws): a range measured through
+    noise is larger than the noiseless curve's, and the model is compared as it would be measured.
+    """
+    want = step_features(obs, model)
+    if sigma is not None:
+        rng = np.random.default_rng(rng)
+        draws = [step_features(obs, model + rng.normal(0.0, 1.0, len(model)) * sigma)
+                 for _ in range(replicates)]
+        with warnings.catch_warnings():  # a step without a signal stays NaN
+            warnings.simplefilter("ignore", RuntimeWarning)
+            want = {k: np.nanmean([d[k] for d in draws], axis=0) for k in want}
+    got = step_features(obs, measured)
+    if model_durations is not None:
+        want["duration"] = np.asarray(model_durations, float)
+    right = obs.stance == "R"
+    out = {}
+    for key, unit in FEATURES.items():
+        diff = got[key] - want[key]
+        out[key] = _summary(diff, unit, got[key], want[key])
+        if key == "duration":
+            # The strikes' own error bounds the standard error from below: a model with one step
+            # time against exact strikes would otherwise have a zero scatter.
+            floor = math.sqrt(float(np.mean(obs.duration_sd**2)) / obs.n_steps)
+            se = math.hypot(out[key]["se"], floor)
+            out[key].update(se=se, z=out[key]["difference"] / se)
+        if np.any(right) and np.any(~right):
+            lr_meas = _lr(got[key], right)
+            lr_model = _lr(want[key], right)
+            d = np.nanmean(diff[right]) - np.nanmean(diff[~right])
+            se = math.hypot(_se(diff[right]), _se(diff[~right]))
+            out[f"{key}_right_minus_left"] = {
+                "measured": lr_meas, "model": lr_model, "difference": float(d), "se": se,
+                "z": float(d / se) if se > 0 else math.nan, "unit": unit}
+    return out
+
+
+def _se(x: np.ndarray) -> float:
+    x = x[np.isfinite(x)]
+    return float(np.std(x, ddof=1) / math.sqrt(len(x))) if len(x) > 1 else math.nan
+
+
+def _lr(x: np.ndarray, right: np.ndarray) -> float:
+    return float(np.nanmean(x[right]) - np.nanmean(x[~right]))
+
+
+def _summary(diff: np.ndarray, unit: str, got: np.ndarray, want: np.ndarray) -> dict:
+    finite = np.isfinite(diff)
+    if not np.any(finite):
+        return {"measured": math.nan, "model": math.nan, "difference": math.nan, "se": math.nan,
+                "z": math.nan, "unit": unit}
+    d, se = float(np.mean(diff[finite])), _se(diff)
+    return {"measured": float(np.nanmean(got)), "model": float(np.nanmean(want)), "difference": d,
+            "se": se, "z": float(d / se) if se > 0 else math.nan, "unit": unit}
