@@ -232,7 +232,7 @@ def test_the_clearing_gait_lies_near_a_fold(clearing_gait):
     assert partner.max_abs_eigenvalue > 1.5
 
 
-def test_toywalk_gait_reports_it(capsys):
+def test_toywalk_gait_reports_it(capfd):
     """`toywalk gait` prints the clearance over the whole swing and where it occurs, and its JSON
     carries it beside pipeline.md's keys. The simplest walker's point foot dips 0.064 mm into the
     ramp 14 mm behind the stance foot (its feet pass through each other, w = 0)."""
@@ -240,7 +240,7 @@ def test_toywalk_gait_reports_it(capsys):
 
     params = DATA / "params" / "simplest-walker.toml"
     assert main(["gait", "--params", str(params), "--json"]) == 0
-    report = json.loads(capsys.readouterr().out)
+    report = json.loads(capfd.readouterr().out)
     for key in ("step_time", "stride_length", "fixed_point", "eigenvalues", "max_abs_eigenvalue",
                 "can_stand", "status"):  # pipeline.md
         assert key in report
@@ -249,6 +249,6 @@ def test_toywalk_gait_reports_it(capsys):
     assert_documented(1e3 * swing["minimum"], -0.064, 1e-3, "clearance (l = 1 m; mm)")
     assert_documented(1e3 * swing["ahead"], -13.9, 0.1, "ahead (mm)")
     assert main(["gait", "--params", str(params)]) == 0
-    text = capsys.readouterr().out
+    text = capfd.readouterr().out
     assert "over the whole swing (lowest at 0.48 of the step, 0.0139 m behind the stance foot)" in text
     assert "the swing foot goes below the ramp" in text
