@@ -190,12 +190,12 @@ class LogPosterior:
             return b, np.zeros(0)
         disp = np.array([step.contact for step in gait.steps]).T
         x, y = self._path.relative(disp)
-        pos = self._path.design(disp)  # columns: yaw (the steer offset), origin_x, origin_y
         design = np.zeros((len(b) + 2 * n_pos, b.shape[1] + 2))
         design[:len(b), :b.shape[1]] = b
-        design[len(b):, b.shape[1]:] = pos[:, 1:]
-        if self.offsets:
-            design[len(b):, 1] = pos[:, 0]
+        design[len(b):len(b) + n_pos, b.shape[1]] = 1.0  # origin_x on the X rows
+        design[len(b) + n_pos:, b.shape[1] + 1] = 1.0  # origin_y on the Y rows
+        if self.offsets:  # the steer offset yaws the path: X - o Y, Y + o X (measurement.Path)
+            design[len(b):, 1] = np.r_[-y, x]
         return design, np.r_[x, y]
 
     def _residuals(self, curves: GaitCurves, time_offset: float,

@@ -327,15 +327,6 @@ class Path:
         """``(X, Y)``, each shape (n_pos,), from the first measured strike (NumPy or CasADi)."""
         return _dot(self.along, displacements[0, :].T), _dot(self.across, displacements[1, :].T)
 
-    def design(self, displacements) -> np.ndarray:
-        """The positions' linear nuisances as a design, shape (2 n_pos, 3): ``X`` then ``Y``
-        rows; columns the steer offset (yaw), ``origin_x`` and ``origin_y``. NumPy only."""
-        x, y = self.relative(np.asarray(displacements, float))
-        out = np.zeros((2 * self.n, 3))
-        out[:self.n, 0], out[self.n:, 0] = -y, x
-        out[:self.n, 1] = out[self.n:, 2] = 1.0
-        return out
-
 
 def path(obs: Observations, phases: int, periodic: bool = True) -> Path:
     """The contact-position part of the measurement model (:class:`Path`)."""
