@@ -65,7 +65,8 @@ def _gait_report(params, gait) -> dict:
     return report
 
 
-def _print_gait(report: dict, out=sys.stdout) -> None:
+def _print_gait(report: dict, out=None) -> None:
+    out = sys.stdout if out is None else out  # looked up per call, not bound at import
     fp = report["fixed_point"]
     print(f"status            {report['status']}{' (planar reduction)' if report['planar'] else ''}",
           file=out)
