@@ -413,6 +413,13 @@ def _gaits(params: Params, z_guess: np.ndarray | None, planar: bool, steps_per_t
         except GaitNotFound as err:
             reasons.append(str(err))
         return
+    if params.gait_start is not None and not (planar or params.active_effects):
+        # The parameter file's stored start (Params.gait_start): a designed gait the search from
+        # the planar reduction does not reach (it may lie past a fold of that homotopy).
+        try:
+            yield solve_fixed_point(walker, np.array(params.gait_start))
+        except GaitNotFound as err:
+            reasons.append(f"from the parameter file's gait start: {err}")
     if params.active_effects:
         # Effects on: the seed model's gait first, then the effects raised from null along the
         # gaits (the stride map's fixed points where an effect breaks the mirror symmetry).

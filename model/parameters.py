@@ -83,6 +83,7 @@ _SCALARS = (
 )
 _VECTORS = {"com_offset": 3, "inertia": 6}
 _UNITS = {
+    "gait.start": "rad and rad/s, the state just after a left heel strike",
     "leg_length": "m, hip axis to foot bottom",
     "foot_radius": "m, fore-aft radius of curvature (0 = point foot)",
     "foot_lateral_radius": "m, sideways radius of curvature (= foot_radius for a sphere)",
@@ -129,6 +130,12 @@ class Params:
         g (m/s^2).
     effects : mapping of str to float
         Strengths of the model's physical effects (model.md section 6); empty is the seed's model.
+    gait_start : tuple of 8 floats, optional
+        A state near the walker's gait just after a left heel strike (model.md section 1), where
+        :func:`~toywalk.model.gait.find_gait` starts before searching. The file's optional
+        ``[gait]`` table, ``start = [...]``: a designed walker whose gait the search does not reach
+        from the planar reduction carries it. Not a parameter: it is kept by :meth:`replace`, left
+        out of comparisons, and the search falls back to its usual starts when it does not converge.
     """
 
     leg_length: float
@@ -142,8 +149,11 @@ class Params:
     slope: float
     gravity: float
     effects: Mapping[str, float] = dataclasses.field(default_factory=dict)
+    gait_start: tuple[float, ...] | None = dataclasses.field(default=None, compare=False)
 
     def __post_init__(self) -> None:
+        if self.gait_start is not None:
+            object.__setattr__(self, "gait_start", _as_vector("gait.start", self.gait_start, 8))
         for name in _SCALARS:
             object.__setattr__(self, name, _as_float(name, getattr(self, name)))
         for name, size in _VECTORS.items():
@@ -260,7 +270,7 @@ class Params:
         data = self.to_dict()
         for key, value in changes.items():
             _set_flat(data, key, value)
-        return Params.from_dict(data)
+        return dataclasses.replace(Params.from_dict(data), gait_start=self.gait_start)
 
     def get(self, name: str) -> float:
         """One flattened value by its file name: ``slope``, ``com_offset[1]``, ``effects.hip_damping``."""
@@ -280,7 +290,7 @@ class Params:
         """Build from a mapping in the shape of the parameter file; unknown or missing keys are errors."""
         if not isinstance(data, Mapping):
             raise ParameterError(f"a parameter set must be a table, got {type(data).__name__}")
-        known = set(_SCALARS) | set(_VECTORS) | {"effects"}
+        known = set(_SCALARS) | set(_VECTORS) | {"effects", "gait"}
         unknown = sorted(set(data) - known)
         if unknown:
             raise ParameterError(
@@ -293,8 +303,12 @@ class Params:
         if not isinstance(effects, Mapping):
             raise ParameterError("effects must be a table of name = value")
         _check_effect_names(effects)
-        kwargs = {k: v for k, v in data.items() if k != "effects"}
-        return cls(**kwargs, effects=dict(effects))
+        gait = data.get("gait", {}) or {}
+        if not isinstance(gait, Mapping) or set(gait) - {"start"}:
+            raise ParameterError("gait must be a table with one key, start = [8 numbers] (a state "
+                                 "near the gait just after a left heel strike)")
+        kwargs = {k: v for k, v in data.items() if k not in ("effects", "gait")}
+        return cls(**kwargs, effects=dict(effects), gait_start=gait.get("start"))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -448,4 +462,8 @@ def save_params(params: Params, path: str | Path, header: str = "") -> None:
     lines.append("[effects]")
     for key, value in sorted(params.effects.items()):
         lines.append(f"{key} = {value!r}")
+    if params.gait_start is not None:
+        lines += ["", "[gait]", f"start = {[float(v) for v in params.gait_start]!r}  # near the gait "
+                  "just after a left heel strike: phi, phi_dot, psi, psi_dot, theta_st, theta_st_dot, "
+                  "theta_sw, theta_sw_dot (rad, rad/s)"]
     atomic_write_text(path, "\n".join(lines) + "\n")

@@ -217,6 +217,23 @@ def test_the_clearing_walker_cannot_stand_walks_stably_and_clears(clearing_gait)
     assert abs(swing.minimum + params.hip_width * math.sin(psi)) < 1e-12
 
 
+def test_find_gait_starts_from_the_files_stored_start(clearing_gait, stable_gait):
+    """The search from the planar reduction does not reach the clearing gait (its homotopy folds
+    back at 32 % of the way: docs/gaits.md section 4), so data/params/clearing-toy.toml stores a
+    start near it (Params.gait_start, rounded to 4 digits); find_gait converges from it to the
+    same gait, to Newton's tolerance (1e-10, model/gait.py; 1e-9 on the state). A stored start
+    that does not converge (a walker standing still) falls back to the usual search."""
+    import dataclasses
+
+    params = load_params(DATA / "params" / "clearing-toy.toml")
+    assert params.gait_start is not None and params.gait_start != tuple(Z_CLEARING)
+    gait = find_gait(params)
+    np.testing.assert_allclose(gait.fixed_point, clearing_gait.fixed_point, rtol=0, atol=1e-9)
+    stable = dataclasses.replace(stable_gait.params, gait_start=(0.0,) * 8)
+    np.testing.assert_allclose(find_gait(stable).fixed_point, stable_gait.fixed_point, rtol=0,
+                               atol=1e-9)
+
+
 def test_the_clearing_gait_lies_near_a_fold(clearing_gait):
     """docs/gaits.md section 4: the stable gait's branch turns back at d_y = 0.1797 m, 3 % below
     the file's 0.1855 m, into the unstable partner gait (step 0.162 s, max |lambda| 1.84) that

@@ -54,6 +54,26 @@ def test_toml_round_trip(tmp_path, toy_params):
     assert not list(tmp_path.glob(".*.tmp"))  # the atomic write leaves no temporary file
 
 
+def test_gait_start_is_read_kept_and_written(tmp_path, toy_params):
+    """The optional ``[gait] start`` table (Params.gait_start): read, kept by replace (a fit or a
+    continuation changes parameters, not where the search starts), left out of comparisons,
+    written back, and refused with a named error when it is not 8 numbers or has other keys."""
+    start = (0.07, -0.47, -0.01, -0.42, -0.19, 3.2, 0.14, 1.1)
+    params = toy_params.replace(slope=0.05)
+    with_start = dataclasses.replace(params, gait_start=start)
+    assert with_start == params and with_start.gait_start == start
+    assert with_start.replace(**{"com_offset[1]": 0.1}).gait_start == start
+    path = tmp_path / "p.toml"
+    save_params(with_start, path)
+    assert load_params(path).gait_start == start and "[gait]" in path.read_text()
+    save_params(params, path)
+    assert load_params(path).gait_start is None and "[gait]" not in path.read_text()
+    with pytest.raises(ParameterError, match="gait.start must be a list of 8 numbers"):
+        _load(tmp_path, _toml() + "\n[gait]\nstart = [1.0, 2.0]\n")
+    with pytest.raises(ParameterError, match="gait must be a table with one key"):
+        _load(tmp_path, _toml() + "\n[gait]\nstart = [0, 0, 0, 0, 0, 0, 0, 0]\nguess = 1\n")
+
+
 def test_valid_file_loads(tmp_path):
     params = _load(tmp_path, _toml())
     assert params.hip_width == 0.01
