@@ -25,6 +25,13 @@ The MuJoCo model (Todorov, Erez & Tassa, IROS 2012, doi:10.1109/IROS.2012.638610
 
 Heel strikes are read from the contacts: a foot's contact that begins after it has been off the
 ramp, ahead of the other foot's, is a heel strike; any other new contact of a foot is a scuff.
+
+The walk's angles are read from the two legs' orientations with the model's own inverse
+(:func:`~toywalk.model.kinematics.angles_from_rotations`, model.md section 1): the left leg's
+frame is ``Rz(steer) Rx(lean) Ry(pitch_left)`` and the right leg's is that times the hinge's
+``Ry(pitch_right - pitch_left)``, so steer, lean and both pitches come back exactly, in the physical
+(unmirrored) frame. :func:`mujoco_trajectory` writes them in the trajectory format (pipeline.md),
+for ``toywalk fit`` and ``toywalk diagnose`` to read as data.
 """
 
 from __future__ import annotations
@@ -34,21 +41,32 @@ import math
 
 import numpy as np
 
-from .kinematics import leg_poses, rotation
-from .parameters import Params
+from .kinematics import angles_from_rotations, leg_poses, rotation
+from .parameters import PARAMETER_NAMES, Params
+from .trajectory import SIGNALS, TrajectoryTable
+from .walker import STATE_NAMES
 
-__all__ = ["MujocoWalk", "build_mjcf", "initial_state", "walk_in_mujoco"]
+__all__ = ["MujocoWalk", "build_mjcf", "initial_state", "mujoco_trajectory", "walk_in_mujoco"]
 
 # Contacts: the solver's time constant (s), critically damped. 1 ms is a few times shorter than
 # anything the walkers do (steps of 0.1 s and more) and long enough that the heel strike is plastic:
 # at 0.2 and 0.4 ms the landing foot of stable-toy widened to 110 mm hips bounced once, 4 ms after
 # landing, at 1 ms it did not (measured, 1e-4 s steps). It must span several integration steps
-# (MuJoCo's docs: at least two); the ramp then yields about g * (1 ms)^2 = 0.01 mm under the
-# walker's weight.
+# (MuJoCo's docs: at least two). Measured on data/params/clearing-toy.toml: the stance foot sinks
+# 0.24 um at most under the walker's weight, and the landing foot 75 um at a heel strike, whose
+# impulse is spread over about 2.5 ms.
 _CONTACT_TIME = 1e-3
 # A foot must have been off the ramp this long (s) before a new contact counts as a new touch, so
 # that the solver's contact chatter within one touch is not counted twice.
 _OFF_TIME = 2e-3
+# The contact model's other settings, written into the MJCF and into a trajectory's metadata.
+# solimp (0.99, 0.999, 0.1 mm): the constraint's impedance, 0.99 at first touch rising to 0.999 at
+# 0.1 mm of penetration. Elliptic friction cones with impratio 10 and MuJoCo's no-slip pass (10
+# iterations) hold the rolling foot's contact nearly still where the model's rolls without slip:
+# it creeps 15 um sideways and 3 um along in a step of the clearing walker (measured,
+# tests/model/test_mujoco.py).
+_SOLIMP = (0.99, 0.999, 0.0001)
+_SOLVER = {"integrator": "RK4", "cone": "elliptic", "impratio": 10, "noslip_iterations": 10}
 
 
 def _require_mujoco():
@@ -125,11 +143,11 @@ def build_mjcf(params: Params, timestep: float = 1e-4, friction: float = 2.0) ->
         raise ValueError(f"timestep must be at most a quarter of the contact time constant "
                          f"{_CONTACT_TIME} s, got {timestep}")
     tc = _CONTACT_TIME
+    solver = " ".join(f'{key}="{value}"' for key, value in _SOLVER.items())
     return f"""<mujoco model="toywalk">
   <compiler angle="radian"/>
-  <option timestep="{timestep!r}" gravity="{grav[0]!r} {grav[1]!r} {grav[2]!r}" integrator="RK4"
-          cone="elliptic" impratio="10" noslip_iterations="10"/>
-  <default><geom solref="{tc!r} 1" solimp="0.99 0.999 0.0001"/></default>
+  <option timestep="{timestep!r}" gravity="{grav[0]!r} {grav[1]!r} {grav[2]!r}" {solver}/>
+  <default><geom solref="{tc!r} 1" solimp="{_num(_SOLIMP)}"/></default>
   <worldbody>
     <geom name="ramp" type="plane" size="0 0 1" contype="0" conaffinity="1" condim="3"
           friction="{friction!r} 0 0"/>
@@ -156,7 +174,8 @@ class MujocoWalk:
     ----------
     status : str
         ``"completed"`` (the steps asked for) or ``"fell"`` (a hip came down to half the leg
-        length, or the time ran out first; ``message`` says which).
+        length, the same foot struck twice running, or the time ran out first; ``message`` says
+        which).
     message : str
     strikes : ndarray, shape (n, 3)
         Heel strikes: time (s), the landing foot's contact position along the ramp and across it (m).
@@ -172,6 +191,22 @@ class MujocoWalk:
         from contact point to contact point).
     duration : float
         Simulated time (s).
+    times : ndarray, shape (n_samples,)
+        Sample times (s), every ``1 / sample_rate`` from 0 (the start, before the first
+        integration step).
+    angles : ndarray, shape (n_samples, 4)
+        The walker's angles at those times (rad), columns :data:`~toywalk.model.trajectory.SIGNALS`:
+        lean (psi), steer (phi), pitch_left, pitch_right (model.md section 1), physical frame.
+    stance : ndarray of str, shape (n_samples,)
+        The foot of the last heel strike at or before each sample ('L' from the start).
+    contact : ndarray, shape (n_samples, 2)
+        The stance foot's lowest point on the ramp (m, slope frame): where it touches it.
+    start : ndarray, shape (8,)
+        The model state the walk started from (just after a left heel strike).
+    settings : dict
+        MuJoCo and its settings: ``engine`` (MuJoCo's version), ``timestep`` (s), ``friction``,
+        ``contact_time_constant`` (s), ``contact_damping_ratio``, ``solimp``, ``integrator``,
+        ``cone``, ``impratio``, ``noslip_iterations``, ``condim``, ``sample_rate`` (Hz).
     """
 
     status: str
@@ -183,6 +218,78 @@ class MujocoWalk:
     step_times: np.ndarray
     step_lengths: np.ndarray
     duration: float
+    times: np.ndarray
+    angles: np.ndarray
+    stance: np.ndarray
+    contact: np.ndarray
+    start: np.ndarray
+    settings: dict
+
+    @property
+    def lean(self) -> np.ndarray:
+        """Lean psi at the samples (rad), shape (n_samples,)."""
+        return self.angles[:, 0]
+
+    @property
+    def steer(self) -> np.ndarray:
+        """Steer phi at the samples (rad), shape (n_samples,)."""
+        return self.angles[:, 1]
+
+    @property
+    def stride_ends(self) -> np.ndarray:
+        """Times (s) of the start and of every second alternating heel strike (the left foot's):
+        the bounds of the walk's complete strides, shape (steps // 2 + 1,)."""
+        return np.r_[0.0, self.strikes[:self.steps, 0]][::2]
+
+    def stride_amplitudes(self, signal: str) -> np.ndarray:
+        """Half the peak-to-peak of ``signal`` (``"lean"`` or ``"steer"``) over each complete stride
+        (rad), shape (steps // 2,): the gait's :attr:`~toywalk.model.gait.Gait.lean_amplitude` and
+        :attr:`~toywalk.model.gait.Gait.steer_amplitude` (which for a step-periodic gait is max |psi|,
+        max |phi|), stride by stride, in the physical frame.
+
+        Raises
+        ------
+        ValueError
+            An unknown signal, or a walk without a complete stride (fewer than two steps).
+        """
+        if signal not in ("lean", "steer"):
+            raise ValueError(f"signal must be 'lean' or 'steer', got {signal!r}")
+        series = self.lean if signal == "lean" else self.steer
+        ends = self.stride_ends
+        if len(ends) < 2:
+            raise ValueError(f"the walk has no complete stride ({self.steps} alternating steps)")
+        out = []
+        for a, b in zip(ends[:-1], ends[1:], strict=True):
+            inside = series[(self.times >= a) & (self.times <= b)]
+            out.append(0.5 * (inside.max() - inside.min()))
+        return np.array(out)
+
+    @property
+    def lean_amplitude(self) -> float:
+        """The lean's stride amplitude (rad; :meth:`stride_amplitudes`), averaged over the strides."""
+        return float(np.mean(self.stride_amplitudes("lean")))
+
+    @property
+    def steer_amplitude(self) -> float:
+        """The steer's stride amplitude (rad; :meth:`stride_amplitudes`), averaged over the strides."""
+        return float(np.mean(self.stride_amplitudes("steer")))
+
+    @property
+    def stride_headings(self) -> np.ndarray:
+        """Direction of travel over each complete stride (rad, from the fall line towards the left;
+        :attr:`~toywalk.model.gait.Gait.heading`): from one left heel strike's contact point to the
+        next, the start's at the origin; shape (steps // 2,)."""
+        points = np.vstack([np.zeros((1, 2)), self.strikes[:self.steps, 1:]])[::2]
+        d = np.diff(points, axis=0)
+        return np.arctan2(d[:, 1], d[:, 0])
+
+
+def _lowest_offset(params: Params, rot: np.ndarray) -> np.ndarray:
+    """The spheroid foot's lowest point relative to its centre (m, slope frame) for a leg of
+    rotation ``rot``: ``-A e_z / sqrt(e_z' A e_z)``, ``A = R diag(a^2) R'`` (a the semi-axes)."""
+    axes = np.array(_foot_axes(params))
+    a_mat = rot @ np.diag(axes**2) @ rot.T
+    return -a_mat[:, 2] / math.sqrt(a_mat[2, 2])
 
 
 def initial_state(params: Params, z0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -191,14 +298,11 @@ def initial_state(params: Params, z0: np.ndarray) -> tuple[np.ndarray, np.ndarra
     phi, phid, psi, psid, th1, th1d, th2, th2d = map(float, z0)
     poses = leg_poses(params, phi, psi, th1, th2, "L", (0.0, 0.0))
     rot = poses.rotation["L"]
-    # The spheroid's lowest point: its centre minus A e_z / sqrt(e_z' A e_z), A = R diag(a^2) R'.
-    axes = np.array(_foot_axes(params))
-    a_mat = rot @ np.diag(axes**2) @ rot.T
-    ez = np.array([0.0, 0.0, 1.0])
-    low = -a_mat @ ez / math.sqrt(ez @ a_mat @ ez)  # lowest point relative to the foot's centre
+    low = _lowest_offset(params, rot)
     centre = rot @ np.array([0.0, 0.0, -(params.leg_length - params.foot_radius)])
     hip = -low - centre  # the hip with the lowest point at the origin
     n = rotation(phi, psi, 0.0)[:, 1]
+    ez = np.array([0.0, 0.0, 1.0])
     omega = phid * ez + psid * rotation(phi, 0.0, 0.0)[:, 0] + th1d * n
     v_hip = np.cross(omega, hip)  # the contact point (origin) is at rest
     quat = _quaternion(rot)
@@ -217,7 +321,8 @@ def _quaternion(rot: np.ndarray) -> np.ndarray:
 
 
 def walk_in_mujoco(params: Params, z0: np.ndarray, steps: int = 20, timestep: float = 1e-4,
-                   friction: float = 2.0, max_time: float | None = None) -> MujocoWalk:
+                   friction: float = 2.0, max_time: float | None = None,
+                   sample_rate: float = 1000.0) -> MujocoWalk:
     """Start the MuJoCo walker at the public state ``z0`` (just after a heel strike, left leg in
     stance) and run it until ``steps`` heel strikes after the start, a fall, or ``max_time``.
 
@@ -234,6 +339,9 @@ def walk_in_mujoco(params: Params, z0: np.ndarray, steps: int = 20, timestep: fl
         Sliding friction coefficient.
     max_time : float, optional
         Give up after this long (s); default 3 s per step asked for.
+    sample_rate : float
+        Samples of the angles per second (Hz); ``1 / sample_rate`` must be a whole number of
+        integration steps.
 
     Returns
     -------
@@ -245,28 +353,50 @@ def walk_in_mujoco(params: Params, z0: np.ndarray, steps: int = 20, timestep: fl
         raise ValueError(f"z0 must be a finite state of 8 components, got {z0!r}")
     if steps < 1:
         raise ValueError(f"steps must be >= 1, got {steps!r}")
+    if not (sample_rate > 0 and math.isfinite(sample_rate)):
+        raise ValueError(f"sample_rate must be a finite rate > 0 (Hz), got {sample_rate!r}")
+    every = round(1.0 / (sample_rate * timestep))
+    if every < 1 or abs(every * timestep * sample_rate - 1.0) > 1e-9:
+        raise ValueError(f"1 / sample_rate must be a whole number of timesteps ({timestep} s), "
+                         f"got sample_rate {sample_rate!r} Hz")
     model = mujoco.MjModel.from_xml_string(build_mjcf(params, timestep, friction))
     data = mujoco.MjData(model)
     data.qpos[:], data.qvel[:] = initial_state(params, z0)
     mujoco.mj_forward(model, data)
-    feet = {"L": model.geom("left_foot").id, "R": model.geom("right_foot").id}
+    foot_of = {model.geom("left_foot").id: "L", model.geom("right_foot").id: "R"}
     bodies = {"L": model.body("left").id, "R": model.body("right").id}
+    left, right = bodies["L"], bodies["R"]
+    fallen = 0.5 * params.leg_length  # hip height (m)
     max_time = 3.0 * steps if max_time is None else max_time
     last_touch = {"L": 0.0, "R": 0.0}  # both feet are on the ramp at the start
     strikes: list[tuple[float, float, float]] = []
     landed: list[str] = []
-    scuffs = 0
+    samples: list[tuple[float, ...]] = []
+    stances: list[str] = []
+
+    def sample() -> None:
+        stance = landed[-1] if landed else "L"
+        rot = {k: data.xmat[b].reshape(3, 3) for k, b in bodies.items()}
+        steer, lean, pitch_left, pitch_right = angles_from_rotations(rot["L"], rot["R"])
+        low = _foot_position(data, model, bodies[stance], params) + _lowest_offset(params, rot[stance])
+        samples.append((data.time, lean, steer, pitch_left, pitch_right, low[0], low[1]))
+        stances.append(stance)
+
+    scuffs, n_step = 0, 0
+    sample()
     status, message = "fell", f"no {steps} heel strikes within {max_time:.3g} s"
     while data.time < max_time:
         mujoco.mj_step(model, data)
-        touching = {}
-        for i in range(data.ncon):
-            con = data.contact[i]
-            for foot, gid in feet.items():
-                if gid in (con.geom1, con.geom2):
-                    touching[foot] = con.pos[:2].copy()
-        for foot, pos in touching.items():
+        n_step += 1
+        touching = {}  # foot -> index of its (last) contact; plain lists: ncon is 0 to 2
+        if data.ncon:
+            for i, (g1, g2) in enumerate(data.contact.geom.tolist()):
+                foot = foot_of.get(g1) or foot_of.get(g2)
+                if foot is not None:
+                    touching[foot] = i
+        for foot, i in touching.items():
             if data.time - last_touch[foot] > _OFF_TIME:  # a new touch
+                pos = data.contact.pos[i]
                 other = "R" if foot == "L" else "L"
                 if pos[0] > _foot_position(data, model, bodies[other], params)[0]:
                     strikes.append((data.time, float(pos[0]), float(pos[1])))
@@ -274,8 +404,9 @@ def walk_in_mujoco(params: Params, z0: np.ndarray, steps: int = 20, timestep: fl
                 else:
                     scuffs += 1
             last_touch[foot] = data.time
-        hips = [data.xpos[bodies[k]][2] for k in ("L", "R")]
-        if min(hips) < 0.5 * params.leg_length:
+        if n_step % every == 0:
+            sample()
+        if min(data.xpos[left, 2], data.xpos[right, 2]) < fallen:
             status, message = "fell", f"a hip came down to half the leg length at t = {data.time:.3f} s"
             break
         if len(strikes) >= steps:
@@ -290,12 +421,78 @@ def walk_in_mujoco(params: Params, z0: np.ndarray, steps: int = 20, timestep: fl
     if status == "completed" and n_alt < len(feet_seq):
         status, message = "fell", f"the same foot struck twice running at t = {arr[n_alt - 1, 0]:.3f} s"
     good = np.vstack([np.zeros((1, 3)), arr])[:n_alt]
+    table = np.array(samples)
+    settings = {"engine": f"MuJoCo {mujoco.__version__}", "timestep": timestep, "friction": friction,
+                "contact_time_constant": _CONTACT_TIME, "contact_damping_ratio": 1.0,
+                "solimp": list(_SOLIMP), **_SOLVER, "condim": 3, "sample_rate": sample_rate}
     return MujocoWalk(status=status, message=message, strikes=arr, feet=landed, scuffs=scuffs,
                       steps=n_alt - 1, step_times=np.diff(good[:, 0]), step_lengths=np.diff(good[:, 1]),
-                      duration=float(data.time))
+                      duration=float(data.time), times=table[:, 0], angles=table[:, 1:5],
+                      stance=np.array(stances), contact=table[:, 5:7], start=z0.copy(),
+                      settings=settings)
 
 
 def _foot_position(data, model, body: int, params: Params) -> np.ndarray:
     """The foot's centre (m, world frame) of the leg ``body``."""
     rot = data.xmat[body].reshape(3, 3)
     return data.xpos[body] + rot @ np.array([0.0, 0.0, -(params.leg_length - params.foot_radius)])
+
+
+def mujoco_trajectory(walk: MujocoWalk, params: Params, parameters: str | None = None) -> TrajectoryTable:
+    """A MuJoCo walk as a trajectory (pipeline.md, "Files"), as ``toywalk simulate`` writes one.
+
+    The columns are the walk's samples (``time, lean, steer, pitch_left, pitch_right, stance``
+    and the stance foot's ``contact_x, contact_y``), exact, without ``*_sd`` columns; the events
+    are the heel strikes that alternate feet after the start (as the model's simulation lists
+    them, the start not among them), with their contact positions. The metadata say the source
+    is MuJoCo, with its settings, the parameters and the start.
+
+    Parameters
+    ----------
+    walk : MujocoWalk
+    params : Params
+        The walker ``walk`` was built from.
+    parameters : str, optional
+        Where they came from (a parameter file's name), for the metadata.
+
+    Returns
+    -------
+    TrajectoryTable
+    """
+    if not isinstance(walk, MujocoWalk):
+        raise TypeError(f"walk must be a MujocoWalk, got {type(walk).__name__}")
+    signals = {name: walk.angles[:, i] for i, name in enumerate(SIGNALS)}
+    signals["contact_x"] = walk.contact[:, 0]
+    signals["contact_y"] = walk.contact[:, 1]
+    events = [{"time": float(t), "foot": foot, "x": float(x), "y": float(y)}
+              for (t, x, y), foot in zip(walk.strikes[:walk.steps], walk.feet[:walk.steps], strict=True)]
+    every = round(1.0 / (walk.settings["sample_rate"] * walk.settings["timestep"]))
+    metadata = {
+        "source": {"kind": "mujoco", "parameters": parameters,
+                   "parameter_values": dict(zip(PARAMETER_NAMES, params.vector().tolist(), strict=True)),
+                   "effects": dict(params.effects), "steps": walk.steps,
+                   "start": dict(zip(STATE_NAMES, walk.start.tolist(), strict=True)),
+                   "start_kind": "the model's state just after a left heel strike, left foot's "
+                                 "lowest point at the origin",
+                   "model": "toywalk.model.mujoco_check: legs hinged on the axle, spheroid feet of "
+                            "the torus's rim curvatures, soft contacts of both feet with the ramp",
+                   **walk.settings},
+        "units": {"time": "s", "angles": "rad", "contact": "m"},
+        "noise_sd": 0.0,
+        "position_noise_sd": 0.0,
+        "timestamps": f"MuJoCo simulation times, every {every} integration steps from the start",
+        "events": "a foot's first contact after 2 ms off the ramp, ahead of the other foot's; its "
+                  "time to one integration step, its position MuJoCo's contact point",
+        "status": walk.status, "message": walk.message, "scuffs": walk.scuffs,
+        "software": _version(),
+    }
+    return TrajectoryTable(walk.times, signals, walk.stance, events, metadata)
+
+
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return f"toywalk {version('toywalk')}"
+    except PackageNotFoundError:
+        return "toywalk (not installed)"
