@@ -375,7 +375,10 @@ def _check_effect_names(effects: Mapping[str, Any]) -> None:
 def _as_float(name: str, value: Any) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
         raise ParameterError(f"{name} must be a number, got {value!r}")
-    out = float(value)
+    try:
+        out = float(value)
+    except OverflowError:  # an integer too large for a float
+        out = math.inf
     if not math.isfinite(out):
         raise ParameterError(f"{name} must be finite, got {value!r}")
     return out
@@ -434,15 +437,19 @@ def load_params(path: str | Path) -> Params:
     """Read a parameter TOML file (pipeline.md shape). Raises :class:`ParameterError` naming the field."""
     path = Path(path)
     try:
-        text = path.read_text()
+        text = path.read_text(encoding="utf-8")  # TOML files are UTF-8 (toml.io)
     except FileNotFoundError as err:
         raise ParameterError(f"parameter file not found: {path}") from err
+    except UnicodeDecodeError as err:
+        raise ParameterError(f"{path} is not a TOML text file (not UTF-8 at byte {err.start})") from err
     except OSError as err:
-        raise ParameterError(f"cannot read parameter file {path}: {err.strerror}") from err
+        raise ParameterError(f"cannot read parameter file {path}: {err.strerror or err}") from err
+    if not text.strip():
+        raise ParameterError(f"parameter file {path} is empty")
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
-        raise ParameterError(f"{path} is not valid TOML: {err}") from err
+        raise ParameterError(f"{path} is not valid TOML: {str(err).splitlines()[0]}") from err
     try:
         return Params.from_dict(data)
     except ParameterError as err:

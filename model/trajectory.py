@@ -12,6 +12,7 @@ interrupted write leaves no partial output.
 from __future__ import annotations
 
 import csv
+import io
 import json
 import math
 import os
@@ -19,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["EVENT_SD_COLUMNS", "SIGNALS", "TrajectoryTable", "read_trajectory", "trajectory_paths",
-           "write_trajectory"]
+__all__ = ["EVENT_SD_COLUMNS", "SIGNALS", "TrajectoryError", "TrajectoryTable", "read_trajectory",
+           "trajectory_paths", "write_trajectory"]
 
 #: Angle signals of a trajectory file, in column order (rad).
 SIGNALS = ("lean", "steer", "pitch_left", "pitch_right")
@@ -118,51 +119,155 @@ def _json_default(obj):
     raise TypeError(f"cannot write {type(obj).__name__} to JSON")
 
 
+class TrajectoryError(ValueError):
+    """A trajectory file is missing, unreadable or malformed; the message (one line) names the
+    file, and the row and column where there is one."""
+
+
+def _first_line(err: BaseException) -> str:
+    lines = str(err).splitlines()
+    return lines[0] if lines else type(err).__name__
+
+
+def _read_text(path: Path, what: str) -> str:
+    """A file's text (UTF-8, an initial byte-order mark dropped), or one-line errors."""
+    if not path.is_file():
+        raise TrajectoryError(f"{what} {path} is not a file")
+    try:
+        return path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError as err:
+        raise TrajectoryError(f"{path} is not a text file (not UTF-8 at byte {err.start})") from err
+    except OSError as err:
+        raise TrajectoryError(f"cannot read {what} {path}: {err.strerror or err}") from err
+
+
+def _csv_rows(path: Path, text: str) -> tuple[list[str], list[tuple[int, list[str]]]]:
+    """Header (names stripped) and (line number, cells) of every non-blank row. Every row must
+    have as many cells as the header: a short last row is a file cut short."""
+    try:
+        rows = list(csv.reader(io.StringIO(text, newline="")))
+    except csv.Error as err:
+        raise TrajectoryError(f"{path} is not a CSV file: {_first_line(err)}") from err
+    if not rows or not any(cell.strip() for cell in rows[0]):
+        raise TrajectoryError(f"{path} is empty (no header row)")
+    header = [cell.strip() for cell in rows[0]]
+    seen = set()
+    for name in header:
+        if not name.isprintable():
+            raise TrajectoryError(f"{path}: the column name {name!r} holds a control character")
+        if name in seen:
+            raise TrajectoryError(f"{path}: column {name!r} appears more than once in the header")
+        seen.add(name)
+    body = []
+    for line, row in enumerate(rows[1:], start=2):
+        if not row or (len(row) == 1 and not row[0].strip()):  # a blank line
+            continue
+        if len(row) != len(header):
+            raise TrajectoryError(f"{path}: row {line} has {len(row)} cells, the header {len(header)} "
+                                  "(a truncated or malformed file)")
+        body.append((line, row))
+    return header, body
+
+
+def _number(path: Path, line: int, name: str, cell: str, *, sd: bool = False) -> float:
+    """A cell's value: NaN for an empty cell (a missing value), else a finite number (a standard
+    deviation: positive, +inf meaning unknown)."""
+    cell = cell.strip()
+    if not cell:
+        return math.nan
+    try:
+        value = float(cell)
+    except ValueError as err:
+        raise TrajectoryError(f"{path}: row {line}, column {name}: not a number: {cell[:40]!r}") from err
+    if math.isnan(value):
+        raise TrajectoryError(f"{path}: row {line}, column {name}: NaN (a missing value is an empty "
+                              "cell)")
+    if sd:
+        if not value > 0:
+            raise TrajectoryError(f"{path}: row {line}, column {name}: a standard deviation must be "
+                                  f"positive, got {cell[:40]!r}")
+    elif not math.isfinite(value):
+        raise TrajectoryError(f"{path}: row {line}, column {name}: not finite: {cell[:40]!r}")
+    return value
+
+
+def _foot(path: Path, line: int, name: str, cell: str, *, empty: bool) -> str:
+    cell = cell.strip()
+    if cell in ("L", "R") or (empty and not cell):
+        return cell
+    allowed = "'L', 'R' or empty" if empty else "'L' or 'R'"
+    raise TrajectoryError(f"{path}: row {line}, column {name}: must be {allowed}, got {cell[:40]!r}")
+
+
 def read_trajectory(path: str | Path) -> TrajectoryTable:
-    """Read NAME.csv (and NAME.events.csv, NAME.json where present)."""
+    """Read NAME.csv (and NAME.events.csv, NAME.json where present).
+
+    Raises
+    ------
+    FileNotFoundError
+        NAME.csv does not exist.
+    TrajectoryError
+        A file is unreadable or malformed (one line naming the file, and the row and column): not
+        UTF-8 text, a missing or repeated column, a row with more or fewer cells than the header (a
+        file cut short), a cell that is not a number, NaN text (a missing value is an empty cell),
+        an infinite value, a standard deviation that is not positive, a stance or foot other than
+        ``L``/``R``, times that are missing or do not increase, metadata that is not a JSON object.
+    """
     csv_path, events_path, meta_path = trajectory_paths(path)
     if not csv_path.exists():
         raise FileNotFoundError(f"trajectory file not found: {csv_path}")
-    with open(csv_path, newline="") as fh:
-        reader = csv.reader(fh)
-        try:
-            header = next(reader)
-        except StopIteration as err:
-            raise ValueError(f"{csv_path} is empty") from err
-        required = ["time", *SIGNALS, "stance"]
-        missing = [c for c in required if c not in header]
-        if missing:
-            raise ValueError(f"{csv_path} lacks column(s) {', '.join(missing)}")
-        rows = list(reader)
+    header, rows = _csv_rows(csv_path, _read_text(csv_path, "trajectory file"))
+    required = ["time", *SIGNALS, "stance"]
+    missing = [c for c in required if c not in header]
+    if missing:
+        raise TrajectoryError(f"{csv_path} lacks column(s) {', '.join(missing)}")
     idx = {name: i for i, name in enumerate(header)}
 
     def column(name):
-        out = np.full(len(rows), np.nan)
-        for r, row in enumerate(rows):
-            cell = row[idx[name]].strip() if idx[name] < len(row) else ""
-            if cell:
-                try:
-                    out[r] = float(cell)
-                except ValueError as err:
-                    raise ValueError(
-                        f"{csv_path}: row {r + 2}, column {name}: not a number: {cell!r}"
-                    ) from err
-        return out
+        sd = name.endswith("_sd")
+        return np.array([_number(csv_path, line, name, row[idx[name]], sd=sd) for line, row in rows],
+                        dtype=float).reshape(len(rows))
 
     time = column("time")
     if np.any(np.isnan(time)):
-        raise ValueError(f"{csv_path}: every row needs a time")
+        line = rows[int(np.flatnonzero(np.isnan(time))[0])][0]
+        raise TrajectoryError(f"{csv_path}: every row needs a time (row {line} has none)")
+    back = np.flatnonzero(np.diff(time) <= 0)
+    if back.size:
+        k = int(back[0])
+        raise TrajectoryError(f"{csv_path}: times must increase: row {rows[k + 1][0]} "
+                              f"({float(time[k + 1])!r} s) is not after row {rows[k][0]} "
+                              f"({float(time[k])!r} s)")
     signals = {name: column(name) for name in header if name not in ("time", "stance")}
-    stance = np.array([row[idx["stance"]].strip() if idx["stance"] < len(row) else "" for row in rows])
+    stance = np.array([_foot(csv_path, line, "stance", row[idx["stance"]], empty=True)
+                       for line, row in rows], dtype="<U1").reshape(len(rows))
     events = []
     if events_path.exists():
-        with open(events_path, newline="") as fh:
-            for row in csv.DictReader(fh):
-                events.append({"time": float(row["time"]), "foot": row["foot"],
-                               "x": float(row["x"]) if row.get("x") else math.nan,
-                               "y": float(row["y"]) if row.get("y") else math.nan})
-                for c in EVENT_SD_COLUMNS:
-                    if c in row:
-                        events[-1][c] = float(row[c]) if row[c] else math.nan
-    metadata = json.loads(meta_path.read_text()) if meta_path.exists() else {}
+        names, event_rows = _csv_rows(events_path, _read_text(events_path, "events file"))
+        missing = [c for c in ("time", "foot") if c not in names]
+        if missing:
+            raise TrajectoryError(f"{events_path} lacks column(s) {', '.join(missing)}")
+        at = {name: i for i, name in enumerate(names)}
+        for line, row in event_rows:
+            t = _number(events_path, line, "time", row[at["time"]])
+            if math.isnan(t):
+                raise TrajectoryError(f"{events_path}: row {line}: every heel strike needs a time")
+            event = {"time": t, "foot": _foot(events_path, line, "foot", row[at["foot"]], empty=False)}
+            for c in ("x", "y", *EVENT_SD_COLUMNS):
+                if c in at:
+                    event[c] = _number(events_path, line, c, row[at[c]], sd=c.endswith("_sd"))
+                elif c in ("x", "y"):
+                    event[c] = math.nan
+            events.append(event)
+    metadata = {}
+    if meta_path.exists():
+        text = _read_text(meta_path, "metadata file")
+        try:
+            metadata = json.loads(text)
+        except (json.JSONDecodeError, RecursionError) as err:
+            raise TrajectoryError(f"{meta_path} is not valid JSON: {_first_line(err)}") from err
+        except ValueError as err:  # e.g. an integer too long to convert
+            raise TrajectoryError(f"cannot read {meta_path}: {_first_line(err)}") from err
+        if not isinstance(metadata, dict):
+            raise TrajectoryError(f"{meta_path} must hold a JSON object (the trajectory's metadata)")
     return TrajectoryTable(time, signals, stance, events, metadata)

@@ -331,6 +331,8 @@ def cmd_demo(args) -> int:
     """The main job on bundled data: the Tinkertoy's model gait against the paper's measurements,
     a walker that cannot stand yet walks stably, its simulated walk and a synthetic video of it."""
     out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise CommandError(f"--out must name a folder, got the file {out}")
     out.mkdir(parents=True, exist_ok=True)
     toy_path = _DATA / "params" / "tinkertoy.toml"
     stable_path = _DATA / "params" / "stable-toy.toml"

@@ -32,7 +32,8 @@ def cmd_calibrate(args) -> int:
     out = output_path(args.out, (".json",))
     for image in args.images:
         if not Path(image).is_file():
-            raise CommandError(f"image not found: {image}")
+            raise CommandError(f"not an image file: {image}" if Path(image).exists() else
+                               f"image not found: {image}")
     try:
         sx, sy = (int(v) for v in args.squares.lower().split("x"))
         board = BoardSpec(squares=(sx, sy),

@@ -33,12 +33,13 @@ def cmd_diagnose(args) -> int:
     import sys
     from pathlib import Path
 
+    from toywalk.model.parameters import PARAMETER_NAMES, ParameterError
     from toywalk.model.trajectory import read_trajectory
     from toywalk.sysid.cli import CommandError, _load, _version
     from toywalk.sysid.diagnosis_report import write_diagnosis
-    from toywalk.sysid.discrepancy import ALPHA, DiagnoseError, diagnose
+    from toywalk.sysid.discrepancy import ALPHA, DiagnoseError, candidates, diagnose
     from toywalk.sysid.fit import FitError, periodicity_test
-    from toywalk.sysid.measurement import MeasurementError
+    from toywalk.sysid.measurement import MeasurementError, observations
 
     out = Path(args.out)
     if out.exists() and not out.is_dir():
@@ -48,6 +49,7 @@ def cmd_diagnose(args) -> int:
     params = _load(args.params)
     try:
         table = read_trajectory(args.trajectory)
+        observations(table)  # a walk that cannot be fitted is refused before the progress lines
     except (OSError, ValueError) as err:
         raise CommandError(str(err)) from err
 
@@ -56,9 +58,20 @@ def cmd_diagnose(args) -> int:
 
     free = split(args.free) or []
     alpha = ALPHA if args.alpha is None else args.alpha
+    if not 0 < alpha < 1:
+        raise CommandError(f"--alpha must be a false-alarm rate in (0, 1), got {alpha}")
     workers = min(4, os.cpu_count() or 1) if args.workers is None else args.workers
     if workers < 1:
         raise CommandError(f"--workers must be >= 1, got {workers}")
+    # The names, before any fit: a misspelt one is refused at once, not after minutes of fitting.
+    unknown = [name for name in free if name not in PARAMETER_NAMES]
+    if unknown:
+        raise CommandError(f"--free: {unknown[0]!r} is not a parameter (names are those of a "
+                           "parameter file: foot_radius, com_offset[1], effects.hip_damping, ...)")
+    try:
+        candidates(params, free, split(args.effects), split(args.parameters))
+    except (DiagnoseError, ParameterError) as err:
+        raise CommandError(str(err)) from err
 
     def say(message: str) -> None:
         print(f"... {message}", file=sys.stderr, flush=True)
@@ -71,7 +84,7 @@ def cmd_diagnose(args) -> int:
         result = diagnose(table, params, free=free, effects=split(args.effects),
                           parameters=split(args.parameters), alpha=alpha, model=model, progress=say,
                           workers=workers, scheduler=args.scheduler)
-    except (DiagnoseError, FitError, MeasurementError) as err:
+    except (DiagnoseError, FitError, MeasurementError, ParameterError) as err:
         raise CommandError(str(err)) from err
     write_diagnosis(result, out, {"trajectory": str(args.trajectory), "params": str(args.params),
                                   "free": free, "model": model, "software": _version()})

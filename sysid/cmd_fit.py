@@ -119,7 +119,14 @@ def cmd_fit(args) -> int:
     for note in report["warnings"]:
         print(f"warning: {note}")
     print(f"{result.status} in {result.iterations} iterations -> {out}")
-    return 0 if result.success else 1
+    if not result.success:
+        import sys
+
+        print(f"toywalk fit: the fit did not succeed ({result.status} after {result.iterations} "
+              f"iterations): {out} records the attempt and its warnings; its estimates are not a "
+              "usable optimum", file=sys.stderr)
+        return 1
+    return 0
 
 
 def _multi_start(table, params, free, args, options):

@@ -38,7 +38,16 @@ def cmd_sample(args) -> int:
     out = output_path(args.out, (".h5", ".hdf5"))
     if args.workers < 1:
         raise CommandError(f"--workers must be >= 1, got {args.workers}")
-    report = read_json_object(args.fit, "fit file", CommandError)
+    if args.report:
+        report_dir = Path(args.report)
+        if report_dir.exists() and not report_dir.is_dir():
+            raise CommandError(f"--report must name a folder, got the file {report_dir}")
+        if not report_dir.parent.is_dir():
+            raise CommandError(f"--report: its parent folder does not exist: {report_dir.parent}")
+    try:
+        report = read_json_object(args.fit, "fit file", CommandError)
+    except (ValueError, RecursionError) as err:  # an integer too long to convert, nesting too deep
+        raise CommandError(f"cannot read fit file {args.fit}: {type(err).__name__}") from err
     try:
         table = read_trajectory(args.trajectory)
     except (OSError, ValueError) as err:

@@ -94,7 +94,8 @@ def cmd_track(args) -> int:
     if overlay is not None and (overlay.suffix.lower() != ".mp4" or not overlay.parent.exists()):
         raise CommandError(f"--overlay must name a .mp4 file in an existing folder, got {overlay}")
     if not video.is_file():
-        raise CommandError(f"video file not found: {video}")
+        raise CommandError(f"not a video file: {video}" if video.exists() else
+                           f"video file not found: {video}")
     hip_width = args.hip_width
     if hip_width is not None and not (math.isfinite(hip_width) and hip_width >= 0):
         raise CommandError(f"--hip-width must be a length >= 0 (m), got {hip_width}")

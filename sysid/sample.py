@@ -6,7 +6,10 @@ al. 2013, PASP 125:306) run one after another, each in its own group of one HDF5
 R-hat compares ensembles, not walkers. Each ensemble starts in a small ball about the fit's
 estimates drawn from its covariance (inside the prior), and its random state comes from the seed
 and its index, so a run is reproducible. A run that is killed resumes where the file ends: every
-stored step is kept and the run continues to the requested length, from the stored state.
+stored step is kept and the run continues to the requested length, from the stored state. Ctrl-C
+or SIGTERM finishes the step under way, stores it and stops. A file at the chain path that is not
+a chain file of this module is refused and left as it is; a new file in which no step was stored
+is removed when the run fails.
 
 The log-posterior (:class:`toywalk.sysid.likelihood.LogPosterior`) returns a blob per sample: the
 gait's max |eigenvalue| and a status (found, outside the prior, no gait). ``--workers K``
@@ -97,8 +100,17 @@ def posterior_from_fit(report: dict, table: TrajectoryTable) -> tuple[LogPosteri
         offsets = "lean_offset" in report["estimates"]
     except SampleError:
         raise
-    except (KeyError, TypeError, ValueError) as err:
+    except (KeyError, TypeError, ValueError, IndexError) as err:
         raise SampleError(f"not a fit file from `toywalk fit` ({type(err).__name__}: {err})") from err
+    if not np.all(np.isfinite(estimates)):
+        raise SampleError("not a usable fit file: its estimates of the free parameters are not all "
+                          "finite numbers")
+    if cov_all.shape != (len(names), len(names)):
+        raise SampleError(f"not a usable fit file: its covariance must be a {len(names)} x "
+                          f"{len(names)} matrix (one row per name), got shape {cov_all.shape}")
+    if not np.all(np.isfinite(cov)):
+        raise SampleError("not a usable fit file: the covariance of its free parameters is not all "
+                          "finite numbers")
     if not free:
         raise SampleError("the fit has no free parameters to sample")
     obs = observations(table)
@@ -130,13 +142,16 @@ def posterior_from_fit(report: dict, table: TrajectoryTable) -> tuple[LogPosteri
     return post, estimates, cov
 
 
-def _initial_ball(estimates, cov, bounds, walkers, rng, post) -> np.ndarray:
-    """Walkers about the estimates (0.1 of the fit's SEs), each inside the prior with a gait."""
+def _initial_ball(estimates, cov, bounds, walkers, rng, post, stopped=lambda: False) -> np.ndarray:
+    """Walkers about the estimates (0.1 of the fit's SEs), each inside the prior with a gait.
+    ``stopped()`` true (Ctrl-C) ends the search with KeyboardInterrupt."""
     scale = np.sqrt(np.maximum(np.diag(cov), 0.0))
     scale = np.where(scale > 0, scale, 1e-6 * np.maximum(np.abs(estimates), 1e-12))
     out = []
     tries = 0
     while len(out) < walkers:
+        if stopped():
+            raise KeyboardInterrupt
         tries += 1
         if tries > 100 * walkers:
             raise SampleError("cannot place walkers about the fit's estimates: no gait there")
@@ -145,6 +160,48 @@ def _initial_ball(estimates, cov, bounds, walkers, rng, post) -> np.ndarray:
                 post(x)[2] == OK:
             out.append(x)
     return np.array(out)
+
+
+def _ignore_interrupt() -> None:
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+@contextlib.contextmanager
+def _stop_between_steps():
+    """Ctrl-C (SIGINT) or a polite kill (SIGTERM) while sampling: the step under way is finished
+    and stored whole, then the run stops with KeyboardInterrupt (one line from the command; the
+    file resumes). Yields a function telling whether such a signal came; a second one stops at
+    once.
+
+    Without this, KeyboardInterrupt is raised inside the log-posterior, where emcee's wrapper
+    prints a traceback and the walker's parameters before passing it on, and SIGTERM ends the
+    process wherever it is, possibly inside a write to the chain file.
+    """
+    import signal
+    import threading
+
+    came = []
+    if threading.current_thread() is not threading.main_thread():  # signals reach the main thread
+        yield lambda: False
+        return
+    previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+
+    def handler(signum, frame):
+        if came:
+            for sig, old in previous.items():
+                signal.signal(sig, old)
+            raise KeyboardInterrupt
+        came.append(signum)
+
+    for sig in previous:
+        signal.signal(sig, handler)
+    try:
+        yield lambda: bool(came)
+    finally:
+        for sig, old in previous.items():
+            signal.signal(sig, old)
 
 
 @contextlib.contextmanager
@@ -168,7 +225,9 @@ def worker_pool(workers: int, scheduler: str | None):
     saved = {k: os.environ.get(k) for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
     os.environ.update({k: "1" for k in saved})
     try:
-        pool = multiprocessing.get_context("spawn").Pool(workers)
+        # Workers ignore Ctrl-C (sent to the whole process group): the parent stops the run
+        # between steps (_stop_between_steps).
+        pool = multiprocessing.get_context("spawn").Pool(workers, initializer=_ignore_interrupt)
     finally:
         for k, v in saved.items():
             if v is None:
@@ -207,17 +266,34 @@ def sample(report: dict, table: TrajectoryTable, out: str | Path, *, walkers: in
     progress : bool
         Show emcee's progress bar.
     """
-    import emcee
-
+    out = Path(out)
+    existed = _check_chain_file(out)
     post, estimates, cov = posterior_from_fit(report, table)
     ndim = len(estimates)
     if walkers < 2 * ndim:
         raise SampleError(f"--walkers must be at least twice the free parameters ({2 * ndim}), got {walkers}")
     if steps < 1 or ensembles < 1:
         raise SampleError("steps and ensembles must be >= 1")
-    out = Path(out)
     seeds = np.random.SeedSequence(seed).spawn(ensembles)
-    with worker_pool(workers, scheduler) as pool:
+    try:
+        _run_ensembles(out, post, estimates, cov, walkers, steps, ensembles, seeds, workers,
+                       scheduler, progress)
+    except BaseException:
+        # A new chain file that holds no step yet is no result: remove it. Stored steps are kept
+        # (an interrupted run resumes from them).
+        if not existed and not any(_initialized(out, f"ensemble_{e}") for e in range(ensembles)):
+            out.unlink(missing_ok=True)
+        raise
+    summary = diagnose_chains(out, post.free, ensembles, n_steps=post.obs.n_steps, period=post.period)
+    return summary
+
+
+def _run_ensembles(out: Path, post, estimates, cov, walkers: int, steps: int, ensembles: int, seeds,
+                   workers: int, scheduler: str | None, progress: bool) -> None:
+    import emcee
+
+    ndim = len(estimates)
+    with worker_pool(workers, scheduler) as pool, _stop_between_steps() as stopped:
         for e in range(ensembles):
             backend = emcee.backends.HDFBackend(str(out), name=f"ensemble_{e}")
             rng = np.random.default_rng(seeds[e])
@@ -238,12 +314,13 @@ def sample(report: dict, table: TrajectoryTable, out: str | Path, *, walkers: in
             if done:
                 state = backend.get_last_sample()
             else:
-                state = emcee.State(_initial_ball(estimates, cov, post.bounds, walkers, rng, post),
+                state = emcee.State(_initial_ball(estimates, cov, post.bounds, walkers, rng, post,
+                                                  stopped),
                                     random_state=np.random.RandomState(
                                         rng.integers(2**32 - 1)).get_state())
-            sampler.run_mcmc(state, steps - done, progress=progress)
-    summary = diagnose_chains(out, post.free, ensembles, n_steps=post.obs.n_steps, period=post.period)
-    return summary
+            for _ in sampler.sample(state, iterations=steps - done, progress=progress):
+                if stopped():  # this step is stored; stop before the next
+                    raise KeyboardInterrupt
 
 
 def _initialized(path: Path, name: str) -> bool:
@@ -251,8 +328,50 @@ def _initialized(path: Path, name: str) -> bool:
 
     if not path.exists():
         return False
-    with h5py.File(path, "r") as f:
-        return name in f and f[name].attrs.get("iteration", 0) > 0
+    try:
+        with h5py.File(path, "r") as f:
+            return name in f and f[name].attrs.get("iteration", 0) > 0
+    except OSError:  # not (or no longer) a readable HDF5 file
+        return False
+
+
+#: What an ensemble's group of a chain file holds (emcee's HDFBackend layout).
+_EMCEE_DATASETS = {"chain", "log_prob", "accepted"}
+_EMCEE_ATTRS = {"nwalkers", "ndim", "iteration"}
+
+
+def _check_chain_file(path: Path) -> bool:
+    """Whether ``path`` exists, after checking that it is a chain file this module wrote (to be
+    resumed); :class:`SampleError` otherwise, leaving the file as it is."""
+    import re
+
+    import h5py
+
+    if not path.exists():
+        return False
+    where = "choose another --out, or move the file away to start afresh"
+    if not path.is_file():
+        raise SampleError(f"{path} is not a file: {where}")
+    try:
+        with h5py.File(path, "r") as f:
+            foreign = sorted(k for k in f if not re.fullmatch(r"ensemble_\d+", k))
+            if foreign:
+                raise SampleError(f"{path} is an HDF5 file but not a chain file of `toywalk sample` "
+                                  f"(it holds {foreign[0]!r}): {where}")
+            for name in f:
+                group = f[name]
+                if not (isinstance(group, h5py.Group) and _EMCEE_ATTRS <= set(group.attrs)
+                        and _EMCEE_DATASETS <= set(group)):
+                    raise SampleError(f"{path}: {name} is not an emcee chain (a damaged chain "
+                                      f"file?): {where}")
+                iteration = int(group.attrs["iteration"])
+                if not 0 <= iteration <= group["chain"].shape[0]:
+                    raise SampleError(f"{path}: {name} says {iteration} steps but stores "
+                                      f"{group['chain'].shape[0]} (a damaged chain file): {where}")
+    except OSError as err:
+        reason = (str(err).splitlines() or [type(err).__name__])[0]
+        raise SampleError(f"{path} is not a readable HDF5 chain file ({reason}): {where}") from err
+    return True
 
 
 def diagnose_chains(path: str | Path, names, ensembles: int, n_steps: int = 0,
@@ -268,12 +387,18 @@ def diagnose_chains(path: str | Path, names, ensembles: int, n_steps: int = 0,
         logps.append(backend.get_log_prob())
         blobs.append(backend.get_blobs())
         acceptance.append(float(np.mean(backend.accepted / max(backend.iteration, 1))))
-        taus.append(emcee.autocorr.integrated_time(chains[-1], tol=0, quiet=True))
+        # A parameter that no walker ever moved (every proposal refused, as in a very short run)
+        # has no autocorrelation time: emcee divides by its zero variance. Taken as infinite: the
+        # chain is not long enough.
+        with np.errstate(divide="ignore", invalid="ignore"):
+            tau_e = emcee.autocorr.integrated_time(chains[-1], tol=0, quiet=True)
+        taus.append(np.where(np.isfinite(tau_e), tau_e, np.inf))
     length = min(c.shape[0] for c in chains)
     tau = np.max(taus, axis=0)
-    converged = bool(length > TAU_FACTOR * np.max(tau))
-    burn = min(int(math.ceil(2 * np.max(tau))), length // 2)
-    thin = max(1, int(np.max(tau) // 2))
+    tau_max = float(np.max(tau))
+    converged = bool(length > TAU_FACTOR * tau_max)
+    burn = min(int(math.ceil(2 * tau_max)), length // 2) if math.isfinite(tau_max) else length // 2
+    thin = max(1, int(tau_max // 2)) if math.isfinite(tau_max) else 1
     kept = [c[burn::thin].reshape(-1, c.shape[-1]) for c in chains]
     per_chain = min(len(k) for k in kept)
     stacked = np.stack([k[:per_chain] for k in kept])  # (ensembles, draws, parameters)
@@ -282,7 +407,7 @@ def diagnose_chains(path: str | Path, names, ensembles: int, n_steps: int = 0,
     eig = eig[np.isfinite(eig)]
     data = {
         "length": int(length), "burn_in": burn, "thin": thin,
-        "autocorrelation_time": dict(zip(names, map(float, tau), strict=True)),
+        "autocorrelation_time": dict(zip(names, map(float, tau), strict=True)),  # inf: never moved
         "long_enough": converged,
         "stop_rule": f"chain length > {TAU_FACTOR} integrated autocorrelation times",
         "acceptance_fraction": acceptance,

@@ -103,22 +103,100 @@ class Camera:
 
     @classmethod
     def from_dict(cls, data: dict) -> Camera:
-        try:
-            width, height = (int(v) for v in data["image_size"])
-            pose = data.get("ramp_pose")
-            ramp_pose = (pose["rvec"], pose["tvec"]) if pose else None
-            return cls(width=width, height=height, matrix=np.array(data["camera_matrix"], dtype=float),
-                       distortion=np.array(data["distortion"], dtype=float), ramp_pose=ramp_pose,
-                       reprojection_error=data.get("reprojection_error_px"))
-        except (KeyError, TypeError, ValueError) as err:
-            if isinstance(err, CameraError):
-                raise
-            raise CameraError(f"malformed camera description: {err!r}") from err
+        """A camera from the JSON file's object: ``image_size`` [width, height] (positive integers),
+        ``camera_matrix`` 3x3 and ``distortion`` (numbers), optional ``ramp_pose`` {rvec, tvec}
+        (three numbers each) and ``reprojection_error_px``; other keys (a calibration's record)
+        are ignored. :class:`CameraError` names the field that is missing or malformed."""
+        bad = "malformed camera description"
+        if not isinstance(data, dict):
+            raise CameraError(f"{bad}: a JSON object is needed, got {type(data).__name__}")
+        missing = [k for k in ("image_size", "camera_matrix", "distortion") if k not in data]
+        if missing:
+            raise CameraError(f"{bad}: missing key(s) {', '.join(missing)} (is this a camera file?)")
+        size = data["image_size"]
+        if not (isinstance(size, list) and len(size) == 2 and all(_is_count(v) for v in size)):
+            raise CameraError(f"image size must be positive integers [width, height] (pixels, at most "
+                              f"{MAX_IMAGE_SIDE}), got {_short(size)}")
+        width, height = (int(v) for v in size)
+        matrix = _numbers(data["camera_matrix"], "camera_matrix")  # its shape: __post_init__
+        distortion = _numbers(data["distortion"], "distortion")
+        if distortion.ndim != 1:
+            raise CameraError(f"{bad}: distortion must be a flat list of numbers, got "
+                              f"{_short(data['distortion'])}")
+        pose = data.get("ramp_pose")
+        ramp_pose = None
+        if pose is not None:
+            if not (isinstance(pose, dict) and {"rvec", "tvec"} <= set(pose)):
+                raise CameraError(f"{bad}: ramp_pose must be an object with rvec and tvec, got "
+                                  f"{_short(pose)}")
+            ramp_pose = tuple(_numbers(pose[k], f"ramp_pose.{k}") for k in ("rvec", "tvec"))
+            if any(v.shape != (3,) for v in ramp_pose):
+                raise CameraError(f"{bad}: ramp_pose rvec and tvec must be three numbers each, got "
+                                  f"{_short(pose)}")
+        error = data.get("reprojection_error_px")
+        if error is not None and not (_is_number(error) and _finite(error) and error >= 0):
+            raise CameraError(f"{bad}: reprojection_error_px must be a number >= 0 (pixels), got "
+                              f"{_short(error)}")
+        return cls(width=width, height=height, matrix=matrix, distortion=distortion,
+                   ramp_pose=ramp_pose, reprojection_error=None if error is None else float(error))
+
+
+def _is_number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _finite(value) -> bool:
+    """A finite number (an integer too large for a float is not)."""
+    try:
+        return math.isfinite(value)
+    except OverflowError:
+        return False
+
+
+#: Largest image side (pixels) a camera file may give: past any camera's sensor, and a renderer
+#: asked for such frames would try to allocate gigabytes each.
+MAX_IMAGE_SIDE = 65536
+
+
+def _is_count(value) -> bool:
+    """An image side: a positive integer up to :data:`MAX_IMAGE_SIDE`, also written as a float
+    (1280.0)."""
+    return (_is_number(value) and _finite(value) and 1 <= value <= MAX_IMAGE_SIDE
+            and float(value).is_integer())
+
+
+def _short(value) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _numbers(value, what: str) -> np.ndarray:
+    """A JSON array (nested lists, at most three deep) of finite numbers as a float array."""
+    def flat(v, depth=0):
+        if isinstance(v, list) and depth < 3:
+            for item in v:
+                yield from flat(item, depth + 1)
+        else:
+            yield v
+
+    if not isinstance(value, list) or not all(_is_number(v) and _finite(v) for v in flat(value)):
+        raise CameraError(f"malformed camera description: {what} must be a list of finite numbers, "
+                          f"got {_short(value)}")
+    try:
+        return np.array(value, dtype=float)
+    except ValueError as err:  # ragged rows
+        raise CameraError(f"malformed camera description: {what} must be a regular array of "
+                          f"numbers, got {_short(value)}") from err
 
 
 def load_camera(path: str | Path) -> Camera:
     """Read a camera JSON file; a clear :class:`CameraError` for a missing or malformed file."""
-    data = read_json_object(path, "camera file", CameraError)
+    try:
+        data = read_json_object(path, "camera file", CameraError)
+    except CameraError:
+        raise
+    except (ValueError, RecursionError) as err:  # an integer too long to convert, nesting too deep
+        raise CameraError(f"cannot read camera file {path}: {type(err).__name__}") from err
     try:
         return Camera.from_dict(data)
     except CameraError as err:

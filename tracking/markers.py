@@ -54,13 +54,29 @@ class LayoutError(ValueError):
     """A marker layout file or argument is malformed; the message names what and where."""
 
 
-def _vector3(value, what: str) -> np.ndarray:
+def _is_number(value) -> bool:
+    """A real number that a float holds, not a bool or a string that looks like one."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        return False
     try:
-        out = np.asarray(value, dtype=float).reshape(-1)
-    except (TypeError, ValueError) as err:
-        raise LayoutError(f"{what} must be three numbers, got {value!r}") from err
-    if out.shape != (3,) or not np.all(np.isfinite(out)):
-        raise LayoutError(f"{what} must be three finite numbers, got {value!r}")
+        float(value)
+    except OverflowError:  # an integer too large for a float
+        return False
+    return True
+
+
+def _short(value) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _vector3(value, what: str) -> np.ndarray:
+    items = value.tolist() if isinstance(value, np.ndarray) and value.ndim == 1 else value
+    if not (isinstance(items, (list, tuple)) and len(items) == 3 and all(_is_number(v) for v in items)):
+        raise LayoutError(f"{what} must be three numbers, got {_short(value)}")
+    out = np.array(items, dtype=float)
+    if not np.all(np.isfinite(out)):
+        raise LayoutError(f"{what} must be three finite numbers, got {_short(value)}")
     return out
 
 
@@ -93,24 +109,22 @@ class Marker:
     name: str = ""
 
     def __post_init__(self) -> None:
-        where = f"marker {self.id!r}"
+        where = f"marker {_short(self.id)}"
         if isinstance(self.id, bool) or not isinstance(self.id, (int, np.integer)) or self.id < 0:
             raise LayoutError(f"{where}: id must be an integer >= 0")
         object.__setattr__(self, "id", int(self.id))
-        if self.body not in BODIES:
-            raise LayoutError(f"{where}: body must be one of {', '.join(BODIES)}, got {self.body!r}")
-        try:
-            side = float(self.side)
-        except (TypeError, ValueError) as err:
-            raise LayoutError(f"{where}: side must be a number (m), got {self.side!r}") from err
+        if not (isinstance(self.body, str) and self.body in BODIES):
+            raise LayoutError(f"{where}: body must be one of {', '.join(BODIES)}, got {_short(self.body)}")
+        if not _is_number(self.side):
+            raise LayoutError(f"{where}: side must be a number (m), got {_short(self.side)}")
+        side = float(self.side)
         if not (math.isfinite(side) and side > 0):
             raise LayoutError(f"{where}: side must be a positive length (m), got {self.side!r}")
         object.__setattr__(self, "side", side)
         margin = side / 4 if self.margin is None else self.margin
-        try:
-            margin = float(margin)
-        except (TypeError, ValueError) as err:
-            raise LayoutError(f"{where}: margin must be a number (m), got {self.margin!r}") from err
+        if not _is_number(margin):
+            raise LayoutError(f"{where}: margin must be a number (m), got {_short(self.margin)}")
+        margin = float(margin)
         if not (math.isfinite(margin) and margin >= 0):
             raise LayoutError(f"{where}: margin must be a length >= 0 (m), got {self.margin!r}")
         object.__setattr__(self, "margin", margin)
@@ -148,7 +162,7 @@ class MarkerLayout:
         if not (isinstance(self.dictionary, str) and self.dictionary.startswith("DICT_")
                 and isinstance(getattr(cv2.aruco, self.dictionary, None), int)):
             raise LayoutError(f"dictionary must name an OpenCV ArUco dictionary such as 'DICT_4X4_50', "
-                              f"got {self.dictionary!r}")
+                              f"got {_short(self.dictionary)}")
         markers = tuple(self.markers)
         if not all(isinstance(m, Marker) for m in markers):
             raise LayoutError("markers must be Marker objects")
@@ -189,7 +203,7 @@ class MarkerLayout:
             raise LayoutError("a marker layout must be a JSON object")
         unknown = set(data) - _LAYOUT_KEYS
         if unknown:
-            raise LayoutError(f"unknown key(s) {', '.join(sorted(unknown))} (expected "
+            raise LayoutError(f"unknown key(s) {', '.join(_short(k) for k in sorted(unknown))} (expected "
                               f"{', '.join(sorted(_LAYOUT_KEYS))})")
         if "dictionary" not in data:
             raise LayoutError("missing key 'dictionary' (e.g. \"DICT_4X4_50\")")
@@ -202,7 +216,8 @@ class MarkerLayout:
                 raise LayoutError(f"markers[{k}] must be an object")
             unknown = set(item) - _MARKER_KEYS
             if unknown:
-                raise LayoutError(f"markers[{k}]: unknown key(s) {', '.join(sorted(unknown))}")
+                names = ", ".join(_short(u) for u in sorted(unknown))
+                raise LayoutError(f"markers[{k}]: unknown key(s) {names}")
             missing = [key for key in ("id", "body", "side", "rvec", "tvec") if key not in item]
             if missing:
                 raise LayoutError(f"markers[{k}]: missing key(s) {', '.join(missing)}")
@@ -215,7 +230,12 @@ class MarkerLayout:
 
 def load_layout(path: str | Path) -> MarkerLayout:
     """Read a marker layout JSON file; a one-line :class:`LayoutError` for a missing or bad file."""
-    data = read_json_object(path, "marker layout file", LayoutError)
+    try:
+        data = read_json_object(path, "marker layout file", LayoutError)
+    except LayoutError:
+        raise
+    except (ValueError, RecursionError) as err:  # an integer too long to convert, nesting too deep
+        raise LayoutError(f"cannot read marker layout file {path}: {type(err).__name__}") from err
     try:
         return MarkerLayout.from_dict(data)
     except LayoutError as err:

@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import os
 import time as _time
 from pathlib import Path
 
@@ -86,8 +85,7 @@ class FrameSource:
             raise TrackError(f"video file not found: {self.path}")
         if not self.path.is_file():
             raise TrackError(f"not a video file: {self.path}")
-        # FFmpeg's own messages ("moov atom not found") would add lines to the one-line errors
-        os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
+        _check_container(self.path)
         self._cap = cv2.VideoCapture(str(self.path))
         if not self._cap.isOpened():
             raise TrackError(f"cannot open video {self.path}: not a readable video file (corrupt or "
@@ -122,6 +120,37 @@ class FrameSource:
         if self.declared_frames > 0 and self.frames_read < self.declared_frames:
             raise TrackError(f"{self.path}: decoded only {self.frames_read} of the "
                              f"{self.declared_frames} frames the container declares (truncated or corrupt)")
+
+
+#: What the first bytes of a video file are for its suffix: an ISO base-media (MP4, QuickTime)
+#: file starts with a box whose type is at bytes 4-8 (ISO/IEC 14496-12; QuickTime files may open
+#: with moov, mdat or a free-space box); an AVI file is a RIFF file of form "AVI " (bytes 8-12).
+_CONTAINERS = {
+    ".mp4": ("MP4", lambda head: head[4:8] in (b"ftyp", b"moov", b"mdat", b"free", b"skip", b"wide")),
+    ".m4v": ("MP4", lambda head: head[4:8] in (b"ftyp", b"moov", b"mdat", b"free", b"skip", b"wide")),
+    ".mov": ("QuickTime", lambda head: head[4:8] in (b"ftyp", b"moov", b"mdat", b"free", b"skip",
+                                                     b"wide", b"pnot")),
+    ".avi": ("AVI", lambda head: head[:4] == b"RIFF" and head[8:12] == b"AVI "),
+}
+
+
+def _check_container(path: Path) -> None:
+    """Refuse a file whose first bytes are not the container its suffix names (an image, a text
+    file or a video cut at its start): FFmpeg would otherwise guess, e.g. read an MP4 that lost its
+    first bytes as a raw stream with invented timestamps."""
+    kind = _CONTAINERS.get(path.suffix.lower())
+    if kind is None:
+        return
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(12)
+    except OSError as err:
+        raise TrackError(f"cannot read video {path}: {err.strerror or err}") from err
+    if not head:
+        raise TrackError(f"cannot open video {path}: the file is empty")
+    if not kind[1](head):
+        raise TrackError(f"cannot open video {path}: not an {kind[0]} file (its first bytes are not "
+                         f"an {kind[0]} header): a mislabelled file, or a video cut at its start")
 
 
 def open_video(path: str | Path) -> FrameSource:

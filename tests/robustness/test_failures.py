@@ -1,0 +1,52 @@
+"""Runs that fail for a reason of the physics or the numerics, not of the input files: a walker
+that falls, and a fit whose solver (IPOPT) stops before it converges. Each is a result, reported
+as one: a non-zero exit status, a line that says what happened, no traceback, and the files it
+writes whole and marked with their status.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+
+from toywalk.model.trajectory import read_trajectory
+
+from .conftest import STABLE_TOY, TOY_SIZED, toywalk
+
+
+def test_walker_that_falls(tmp_path, capfd):
+    """toy-sized's gait is unstable (max |eigenvalue| 6.0): released at its fixed point it falls
+    within 20 steps. The walk until the fall is the result: status 1 (not 2, bad input), the
+    summary line says it fell and where, nothing on stderr, and the trajectory is written whole,
+    its metadata saying it fell."""
+    out = tmp_path / "walk.csv"
+    outcome = toywalk(capfd, "simulate", "--params", TOY_SIZED, "--steps", "40", "--out", out)
+    assert outcome.code == 1, outcome.err
+    assert outcome.err_lines == []
+    lines = outcome.out.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("fell: step "), outcome.out
+    walk = read_trajectory(out)  # the three files, whole and readable
+    assert walk.metadata["status"] == "fell" and walk.metadata["message"] in lines[0]
+    assert 1 < len(walk.events) < 40 and walk.time[-1] > walk.events[-1]["time"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["walk.csv", "walk.events.csv", "walk.json"]
+
+
+def test_fit_that_does_not_converge(walk, tmp_path, capfd, monkeypatch):
+    """IPOPT stopped after one iteration (its iteration limit, as a fit from far off or of a walk
+    the model cannot follow would reach): status 1, the solver's status in the summary, one line on
+    stderr saying the fit did not succeed, and the fit file written whole with that status (it is
+    a record of the attempt; `toywalk sample` refuses it)."""
+    import toywalk.sysid.fit as fit_module
+
+    monkeypatch.setattr(fit_module, "fit", functools.partial(fit_module.fit, max_iter=1))
+    out = tmp_path / "fit.json"
+    outcome = toywalk(capfd, "fit", walk, "--params", STABLE_TOY, "--free", "foot_radius",
+                      "--model", "periodic", "--intervals", "10", "--out", out)
+    assert outcome.code == 1
+    assert outcome.err_lines == [f"toywalk fit: the fit did not succeed (Maximum_Iterations_Exceeded "
+                                 f"after 1 iterations): {out} records the attempt and its warnings; "
+                                 "its estimates are not a usable optimum"], outcome.err
+    assert outcome.out.strip().splitlines()[-1] == f"Maximum_Iterations_Exceeded in 1 iterations -> {out}"
+    report = json.loads(out.read_text())
+    assert report["success"] is False and report["status"] == "Maximum_Iterations_Exceeded"
+    assert [p.name for p in tmp_path.iterdir()] == ["fit.json"]  # no temporary file left
