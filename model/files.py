@@ -7,7 +7,7 @@ import json
 import os
 from pathlib import Path
 
-__all__ = ["atomic_write_json", "atomic_write_text", "read_json_object"]
+__all__ = ["atomic_write_json", "atomic_write_text", "read_json_object", "software_version"]
 
 
 def atomic_write_text(path: str | Path, text: str) -> None:
@@ -28,13 +28,24 @@ def atomic_write_json(path: str | Path, data) -> None:
 
 def read_json_object(path: str | Path, what: str, error: type[Exception]) -> dict:
     """The JSON object in ``path``; ``error`` with one line naming ``what`` (e.g. "camera file")
-    if the file is missing, unreadable, not JSON or not a JSON object."""
+    if the file is missing, unreadable, not JSON (a JSONDecodeError, an integer too long to
+    convert, a ValueError both; nesting too deep, a RecursionError) or not a JSON object."""
     try:
         data = json.loads(Path(path).read_text())
     except FileNotFoundError as err:
         raise error(f"{what} not found: {path}") from err
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+    except (OSError, ValueError, RecursionError) as err:
         raise error(f"cannot read {what} {path}: {str(err).splitlines()[0]}") from err
     if not isinstance(data, dict):
         raise error(f"{what} {path} must hold a JSON object")
     return data
+
+
+def software_version() -> str:
+    """``toywalk X.Y`` as installed, for the metadata of every file the toolkit writes."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return f"toywalk {version('toywalk')}"
+    except PackageNotFoundError:
+        return "toywalk (not installed)"

@@ -41,6 +41,7 @@ import math
 
 import numpy as np
 
+from .files import software_version as _version
 from .kinematics import angles_from_rotations, leg_poses, rotation
 from .parameters import PARAMETER_NAMES, Params
 from .trajectory import SIGNALS, TrajectoryTable
@@ -487,12 +488,3 @@ def mujoco_trajectory(walk: MujocoWalk, params: Params, parameters: str | None =
         "software": _version(),
     }
     return TrajectoryTable(walk.times, signals, walk.stance, events, metadata)
-
-
-def _version() -> str:
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        return f"toywalk {version('toywalk')}"
-    except PackageNotFoundError:
-        return "toywalk (not installed)"

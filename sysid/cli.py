@@ -14,6 +14,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from toywalk.model.files import software_version as _version
 
 __all__ = ["main"]
 
@@ -299,15 +300,6 @@ def _simulate_to_file(params, steps: int, out: Path, noise: float, seed, source:
     write_trajectory(table, out)
     return {"status": traj.status, "message": traj.message, "samples": len(traj.times),
             "heel_strikes": len(events)}
-
-
-def _version() -> str:
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        return f"toywalk {version('toywalk')}"
-    except PackageNotFoundError:
-        return "toywalk (not installed)"
 
 
 def cmd_simulate(args) -> int:

@@ -44,10 +44,7 @@ def cmd_sample(args) -> int:
             raise CommandError(f"--report must name a folder, got the file {report_dir}")
         if not report_dir.parent.is_dir():
             raise CommandError(f"--report: its parent folder does not exist: {report_dir.parent}")
-    try:
-        report = read_json_object(args.fit, "fit file", CommandError)
-    except (ValueError, RecursionError) as err:  # an integer too long to convert, nesting too deep
-        raise CommandError(f"cannot read fit file {args.fit}: {type(err).__name__}") from err
+    report = read_json_object(args.fit, "fit file", CommandError)
     try:
         table = read_trajectory(args.trajectory)
     except (OSError, ValueError) as err:

@@ -191,12 +191,7 @@ def _numbers(value, what: str) -> np.ndarray:
 
 def load_camera(path: str | Path) -> Camera:
     """Read a camera JSON file; a clear :class:`CameraError` for a missing or malformed file."""
-    try:
-        data = read_json_object(path, "camera file", CameraError)
-    except CameraError:
-        raise
-    except (ValueError, RecursionError) as err:  # an integer too long to convert, nesting too deep
-        raise CameraError(f"cannot read camera file {path}: {type(err).__name__}") from err
+    data = read_json_object(path, "camera file", CameraError)
     try:
         return Camera.from_dict(data)
     except CameraError as err:

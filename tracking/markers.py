@@ -230,12 +230,7 @@ class MarkerLayout:
 
 def load_layout(path: str | Path) -> MarkerLayout:
     """Read a marker layout JSON file; a one-line :class:`LayoutError` for a missing or bad file."""
-    try:
-        data = read_json_object(path, "marker layout file", LayoutError)
-    except LayoutError:
-        raise
-    except (ValueError, RecursionError) as err:  # an integer too long to convert, nesting too deep
-        raise LayoutError(f"cannot read marker layout file {path}: {type(err).__name__}") from err
+    data = read_json_object(path, "marker layout file", LayoutError)
     try:
         return MarkerLayout.from_dict(data)
     except LayoutError as err:

@@ -42,6 +42,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from toywalk.model.files import software_version as _version
 
 from .camera import Camera
 from .markers import MarkerLayout, default_layout
@@ -677,12 +678,3 @@ def _params_dict(params) -> dict:
     from toywalk.model.parameters import PARAMETER_NAMES
 
     return dict(zip(PARAMETER_NAMES, (float(v) for v in params.vector()), strict=True))
-
-
-def _version() -> str:
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        return f"toywalk {version('toywalk')}"
-    except PackageNotFoundError:
-        return "toywalk (not installed)"
