@@ -319,67 +319,6 @@ def cmd_simulate(args) -> int:
     return 0 if info["status"] == "completed" else 1
 
 
-def cmd_demo(args) -> int:
-    """The main job on bundled data: the Tinkertoy's model gait against the paper's measurements,
-    a walker that cannot stand yet walks stably, its simulated walk and a synthetic video of it."""
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise CommandError(f"--out must name a folder, got the file {out}")
-    out.mkdir(parents=True, exist_ok=True)
-    toy_path = _DATA / "params" / "tinkertoy.toml"
-    stable_path = _DATA / "params" / "stable-toy.toml"
-    for path in (toy_path, stable_path):
-        if not path.exists():
-            raise CommandError(f"bundled parameter file not found: {path}")
-    toy = _find_gait(_load(str(toy_path)))
-    print("1. The Tinkertoy (Coleman & Ruina 1998), best plausible fit (data/params/tinkertoy.toml)")
-    print(f"   stride time   measured 0.47 s    model {toy.stride_time:.3f} s")
-    print(f"   per stride    measured 1.3 cm    model {100 * toy.stride_length:.2f} cm")
-    print(f"   tilt          measured ~4 deg    model {math.degrees(toy.lean_amplitude):.2f} deg")
-    print(f"   stability     walks stably       model max |eigenvalue| {toy.max_abs_eigenvalue:.3f}"
-          f" ({'stable' if toy.stable else 'unstable'}); see docs/gaits.md for why it cannot match\n")
-    params = _load(str(stable_path))
-    print("2. A walker that cannot stand yet walks stably (data/params/stable-toy.toml)")
-    gait = _find_gait(params)
-    report = _gait_report(params, gait)
-    _print_gait(report)
-    (out / "gait.json").write_text(json.dumps(report, indent=2, default=float) + "\n")
-    info = _simulate_to_file(params, 30, out / "walk.csv", 0.0, 0, str(stable_path))
-    print(f"\n3. Simulated 30 steps: {info['status']}; trajectory in {out / 'walk.csv'}")
-    status = main(["render", str(out / "walk.csv"), "--params", str(stable_path), "--seed", "0",
-                   "--duration", "2", "--out", str(out / "video.mp4")])
-    if status != 0:
-        return status
-    print(f"4. Synthetic video of its first 2 s (known truth beside it): {out / 'video.mp4'}")
-    status = main(["track", str(out / "video.mp4"), "--camera", str(out / "video.camera.json"),
-                   "--markers", str(out / "video.markers.json"), "--out", str(out / "tracked.csv"),
-                   "--overlay", str(out / "tracked.overlay.mp4")])
-    if status == 0:
-        _print_tracking_errors(out / "tracked.csv", out / "video.truth.csv")
-    return status
-
-
-def _print_tracking_errors(tracked_path: Path, truth_path: Path) -> None:
-    """The tracked trajectory against the renderer's truth: RMS error per angle, heel strikes."""
-    from toywalk.model.trajectory import read_trajectory
-    from toywalk.tracking.accuracy import match_strikes, signal_errors
-
-    tracked, truth = read_trajectory(tracked_path), read_trajectory(truth_path)
-    print(f"5. Tracked back from the video ({tracked_path}), against the truth:")
-    for name, e in signal_errors(tracked, truth).items():
-        rms = math.nan if e["rms_deg"] is None else e["rms_deg"]
-        print(f"   {name:<12s} RMS error {rms:.2f} deg over {len(truth.time) - e['gaps']} of "
-              f"{len(truth.time)} frames")
-    dt = float(np.median(np.diff(truth.time)))
-    true = [e for e in truth.events if truth.time[0] + 3 * dt < e["time"] < truth.time[-1] - 3 * dt]
-    step = float(np.median(np.diff([e["time"] for e in truth.events]))) if len(truth.events) > 1 else 0.4
-    strikes = match_strikes(true, tracked.events, step, dt)
-    timing = (f", timing RMS {strikes['timing_rms_frames']:.2f} frame"
-              if strikes["timing_rms_frames"] is not None else "")
-    print(f"   heel strikes {strikes['found']} found, {strikes['true']} true (more than 3 frames from "
-          f"the ends){timing}")
-
-
 #: Modules that add commands of later stages: each defines ``register(subparsers)``, adding its
 #: sub-parsers with ``set_defaults(func=...)``; a function raises :class:`CommandError` for bad input.
 _COMMAND_MODULES = (
@@ -389,6 +328,7 @@ _COMMAND_MODULES = (
     "toywalk.sysid.cmd_fit",
     "toywalk.sysid.cmd_sample",
     "toywalk.sysid.cmd_diagnose",
+    "toywalk.sysid.cmd_demo",
 )
 
 
@@ -426,9 +366,6 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=None)
     p.add_argument("--out", required=True, help="trajectory file NAME.csv")
     p.set_defaults(func=cmd_simulate)
-    p = sub.add_parser("demo", help="run the main job on bundled data")
-    p.add_argument("--out", default="out/demo")
-    p.set_defaults(func=cmd_demo)
     return parser
 
 

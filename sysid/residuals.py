@@ -282,6 +282,10 @@ def feature_misfit(obs: Observations, measured: np.ndarray, model: np.ndarray,
             lr_model = _lr(want[key], right)
             d = np.nanmean(diff[right]) - np.nanmean(diff[~right])
             se = math.hypot(_se(diff[right]), _se(diff[~right]))
+            if key == "duration":  # the strikes' error bounds it from below, as above
+                floor = math.sqrt(float(np.mean(obs.duration_sd**2))
+                                  * (1.0 / np.sum(right) + 1.0 / np.sum(~right)))
+                se = math.hypot(se, floor)
             out[f"{key}_right_minus_left"] = {
                 "measured": lr_meas, "model": lr_model, "difference": float(d), "se": se,
                 "z": float(d / se) if se > 0 else math.nan, "unit": unit}

@@ -19,9 +19,10 @@ from toywalk.model.files import atomic_write_json
 
 from .camera import Camera
 from .detect import dictionary_by_name
+from .planes import compose, draw_plane
 
-__all__ = ["DEFAULT_BOARD", "BoardSpec", "CalibrationError", "CalibrationResult", "calibrate",
-           "save_calibration"]
+__all__ = ["DEFAULT_BOARD", "BoardSpec", "CalibrationError", "CalibrationResult", "board_views",
+           "calibrate", "save_calibration"]
 
 
 class CalibrationError(ValueError):
@@ -117,6 +118,35 @@ class CalibrationResult:
                             map(float, self.std_intrinsics), strict=False)),
         }
         return out
+
+
+def board_views(camera: Camera, n: int = 10, noise: float = 1.5, seed: int = 0,
+                board: BoardSpec = DEFAULT_BOARD) -> list[np.ndarray]:
+    """Synthetic views of ``board`` through ``camera`` (grey images, its size), as a person would
+    take them: the board tilted up to 0.5 rad about each axis and turned up to 0.3 rad, off
+    centre, at the distance where it spans about 55 % of the image's width (0.85 to 1.15 of it),
+    on a grey background with grey-level noise of SD ``noise``. For a calibration whose truth is
+    known (``toywalk calibrate``'s tests, the bundled sample's lens)."""
+    rng = np.random.default_rng(seed)
+    px = 100  # texture pixels per square
+    sx, sy = board.squares
+    tex = board.board().generateImage((sx * px, sy * px))
+    w, h = sx * board.square_length, sy * board.square_length
+    reach = camera.matrix[0, 0] * w / (0.55 * camera.width)
+    views = []
+    for _ in range(n):
+        tilt = rng.uniform(-0.5, 0.5, 2)
+        # board-to-camera: centre the board, tilt it, put it at about ``reach``, off centre
+        centre = (np.zeros(3), np.array([-w / 2, -h / 2, 0.0]))
+        tilted = compose((np.array([tilt[0], tilt[1], rng.uniform(-0.3, 0.3)]), np.zeros(3)), centre)
+        depth = reach * rng.uniform(0.85, 1.15)
+        pose = compose((np.zeros(3), depth * np.array([rng.uniform(-0.12, 0.12),
+                                                       rng.uniform(-0.08, 0.08), 1.0])), tilted)
+        image = np.full((camera.height, camera.width), 90, np.uint8)
+        # board frame: y down the printed image, so the texture is flipped for draw_plane's +y-up rows
+        draw_plane(image, camera, np.flipud(tex), (0.0, w, 0.0, h), *pose, ss=2)
+        views.append(np.clip(image + rng.normal(0, noise, image.shape), 0, 255).astype(np.uint8))
+    return views
 
 
 def _load_image(item, name: str) -> np.ndarray:

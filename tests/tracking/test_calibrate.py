@@ -7,9 +7,10 @@ import cv2
 import numpy as np
 import pytest
 from toywalk.tracking.calibrate import DEFAULT_BOARD, CalibrationError, calibrate, save_calibration
+from toywalk.tracking.calibrate import board_views as library_board_views
 from toywalk.tracking.camera import Camera, load_camera
 
-from .synthetic import TOYWALK, compose, draw_plane
+from .synthetic import TOYWALK
 
 # Tangential terms of a cheap lens, 4-8 of the calibration's standard errors from zero (below), so
 # that a dropped, swapped or sign-flipped term is seen; with the earlier 0.0008, -0.0005 (2.5 and
@@ -21,27 +22,9 @@ NAMES = ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3")
 
 
 def board_views(n=10, noise=1.5, seed=0):
-    """Views of the default board at varied tilts and positions, grey-level noise of SD ``noise``."""
-    rng = np.random.default_rng(seed)
-    board = DEFAULT_BOARD.board()
-    px = 100  # texture pixels per square
-    sx, sy = DEFAULT_BOARD.squares
-    tex = board.generateImage((sx * px, sy * px))
-    w, h = sx * DEFAULT_BOARD.square_length, sy * DEFAULT_BOARD.square_length
-    views = []
-    for _ in range(n):
-        tilt = rng.uniform(-0.5, 0.5, 2)
-        # board-to-camera: centre the board, tilt it, put it 0.45-0.6 m away, off-centre
-        centre = (np.zeros(3), np.array([-w / 2, -h / 2, 0.0]))
-        tilted = compose((np.array([tilt[0], tilt[1], rng.uniform(-0.3, 0.3)]), np.zeros(3)), centre)
-        pose = compose((np.zeros(3), np.array([rng.uniform(-0.06, 0.06), rng.uniform(-0.04, 0.04),
-                                               rng.uniform(0.45, 0.6)])), tilted)
-        image = np.full((TRUE.height, TRUE.width), 90, np.uint8)
-        # board frame: y down the printed image, so the texture is flipped for draw_plane's +y-up rows
-        draw_plane(image, TRUE, np.flipud(tex), (0.0, w, 0.0, h), *pose, ss=2)
-        image = np.clip(image + rng.normal(0, noise, image.shape), 0, 255).astype(np.uint8)
-        views.append(image)
-    return views
+    """Views of the default board through the lens ``TRUE`` (toywalk.tracking.calibrate.board_views:
+    the board 0.42-0.58 m away at its focal length, tilted, off centre)."""
+    return library_board_views(TRUE, n, noise, seed)
 
 
 @pytest.fixture(scope="module")
