@@ -1,32 +1,46 @@
-"""The walker model: parameters, equations of motion, collision, step map, gaits, simulation."""
+"""The walker model: parameters, equations of motion, collision, step map, gaits, simulation.
 
-from .effects import EFFECTS, Effect
-from .gait import Gait, GaitNotFound, find_gait, solve_fixed_point
-from .parameters import PARAMETER_NAMES, ParameterError, Params, load_params, save_params
-from .simulate import Trajectory, simulate
-from .statics import StandingReport, can_stand, static_margin
-from .walker import STATE_NAMES, Cycle, Step, StepFailure, Walker
+The names below load their module on first use (PEP 562), so that a tool that only reads files
+(``toywalk.model.trajectory``, ``toywalk.model.files``) does not import CasADi.
+"""
 
-__all__ = [
-    "EFFECTS",
-    "PARAMETER_NAMES",
-    "STATE_NAMES",
-    "Cycle",
-    "Effect",
-    "Gait",
-    "GaitNotFound",
-    "ParameterError",
-    "Params",
-    "StandingReport",
-    "Step",
-    "StepFailure",
-    "Trajectory",
-    "Walker",
-    "can_stand",
-    "find_gait",
-    "load_params",
-    "save_params",
-    "simulate",
-    "solve_fixed_point",
-    "static_margin",
-]
+import importlib
+
+#: Each public name and the submodule that defines it.
+_WHERE = {
+    "Cycle": "walker",
+    "EFFECTS": "effects",
+    "Effect": "effects",
+    "Gait": "gait",
+    "GaitNotFound": "gait",
+    "PARAMETER_NAMES": "parameters",
+    "ParameterError": "parameters",
+    "Params": "parameters",
+    "STATE_NAMES": "walker",
+    "StandingReport": "statics",
+    "Step": "walker",
+    "StepFailure": "walker",
+    "Trajectory": "simulate",
+    "Walker": "walker",
+    "can_stand": "statics",
+    "find_gait": "gait",
+    "load_params": "parameters",
+    "save_params": "parameters",
+    "simulate": "simulate",
+    "solve_fixed_point": "gait",
+    "static_margin": "statics",
+}
+
+__all__ = sorted(_WHERE)
+
+
+def __getattr__(name: str):
+    if name in _WHERE:
+        value = getattr(importlib.import_module(f".{_WHERE[name]}", __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_WHERE))

@@ -7,7 +7,11 @@ import json
 import os
 from pathlib import Path
 
-__all__ = ["atomic_write_json", "atomic_write_text", "read_json_object", "software_version"]
+__all__ = ["DATA_DIR", "atomic_write_json", "atomic_write_text", "read_json_object", "software_version"]
+
+#: The bundled data (data/README.md): beside the packages in the source tree, and installed with
+#: them as ``toywalk/data`` from a wheel, so the same relative path finds it in both.
+DATA_DIR = Path(__file__).resolve().parents[1] / "data"
 
 
 def atomic_write_text(path: str | Path, text: str) -> None:

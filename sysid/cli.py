@@ -18,7 +18,6 @@ from toywalk.model.files import software_version as _version
 
 __all__ = ["main"]
 
-_DATA = Path(__file__).resolve().parents[1] / "data"
 
 
 class CommandError(Exception):

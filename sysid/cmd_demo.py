@@ -49,7 +49,8 @@ def _say(message: str) -> None:
 
 
 def cmd_demo(args) -> int:
-    from toywalk.sysid.cli import _DATA, CommandError, main
+    from toywalk.model.files import DATA_DIR as _DATA
+    from toywalk.sysid.cli import CommandError, main
 
     out = Path(args.out)
     if out.exists() and not out.is_dir():

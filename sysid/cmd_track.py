@@ -21,9 +21,10 @@ import hashlib
 import math
 from pathlib import Path
 
+from toywalk.model.files import DATA_DIR as _DATA
+
 __all__ = ["cmd_track", "register"]
 
-_DATA = Path(__file__).resolve().parents[1] / "data"
 
 
 def register(subparsers) -> None:

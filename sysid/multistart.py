@@ -45,6 +45,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 from toywalk.model.effects import EFFECTS
+from toywalk.model.files import DATA_DIR
 from toywalk.model.parameters import ParameterError, Params, load_params
 from toywalk.model.trajectory import TrajectoryTable
 
@@ -54,7 +55,7 @@ __all__ = ["DISTINCT_CHI2", "DISTINCT_SE", "DUPLICATE_RTOL", "SHIPPED_PARAMS", "
            "carried_over", "multi_start", "shipped_starts"]
 
 #: The shipped parameter sets (``data/params``), the default starts.
-SHIPPED_PARAMS = Path(__file__).resolve().parents[1] / "data" / "params"
+SHIPPED_PARAMS = DATA_DIR / "params"
 #: Two starts whose free values agree to this relative difference are one start.
 DUPLICATE_RTOL = 1e-9
 #: Distinct optima differ by more than this many combined standard errors in some parameter: at 3,

@@ -1,5 +1,8 @@
 """Forward simulation over many steps and the trajectory files."""
 
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
@@ -76,3 +79,15 @@ def test_trajectory_files_round_trip(compass, tmp_path):
     assert (tmp_path / "m.events.csv").read_text().splitlines()[0] == "time,foot,x,y,time_sd"
     back_sd = [e["time_sd"] for e in read_trajectory(tmp_path / "m.csv").events]
     assert np.isnan(back_sd[0]) and back_sd[1:] == [e["time_sd"] for e in measured[1:]]
+
+
+def test_reading_a_trajectory_does_not_load_casadi():
+    """A tool that only reads trajectories (a plotting script, the robustness suite's readers)
+    should not pay CasADi's import (1.1 s): toywalk.model loads its submodules on first use. The
+    same check fails when toywalk.model imports them eagerly, as it did."""
+    code = ("import sys; from toywalk.model.trajectory import read_trajectory; "
+            f"t = read_trajectory({str(DATA / 'sample' / 'walk.truth.csv')!r}); "
+            "assert len(t.time) > 100; print('casadi' in sys.modules)")
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.strip() == "False"
