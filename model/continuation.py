@@ -119,6 +119,35 @@ def _point(gait: Gait, value: float) -> BranchPoint:
                        clearance=swing.minimum, clearance_ahead=swing.ahead)
 
 
+def _first_gait(params: Params, name: str, start: float, planar, max_points: int, ds_max: float) -> Gait:
+    """The gait at ``name = start``. A walker that stores a start near its own gait (``[gait]
+    start``, found past a fold of the search's homotopy) has its gait followed from its own value
+    to ``start``, where the search alone may not reach it; otherwise, or if that stops short,
+    :func:`find_gait`."""
+    first = params.replace(**{name: start})
+    own = params.get(name)
+    if params.gait_start is None or own == start:
+        return find_gait(first, planar=planar)
+    try:
+        approach = continue_branch(params, name, own, start, max_points=max_points, ds_max=ds_max,
+                                   planar=planar)
+    except GaitNotFound as err:
+        why = f"the walker's own gait at {name} = {own:g} is not found ({err})"
+    else:
+        if approach.status == "reached":
+            return solve_fixed_point(Walker(first, planar=approach.planar, period=approach.period),
+                                     approach.points[-1].fixed_point)
+        folds = [e.value for e in approach.events if e.kind == "fold"]
+        where = (f"it folds back at {name} = {folds[0]:.6g}" if folds else
+                 f"{approach.status}: {approach.message}")
+        why = (f"the walker's own gait, followed from {name} = {own:g}, does not reach {start:g} "
+               f"({where})")
+    try:
+        return find_gait(first, planar=planar)
+    except GaitNotFound as err:
+        raise GaitNotFound(f"{why}; and the search at {start:g} found none ({err})") from err
+
+
 def continue_branch(params: Params, name: str, start: float, end: float, max_points: int = 200,
                     ds: float | None = None, ds_max: float = 0.05, z_start: np.ndarray | None = None,
                     planar: bool | None = None, progress: bool = False) -> Branch:
@@ -156,7 +185,7 @@ def continue_branch(params: Params, name: str, start: float, end: float, max_poi
     breaking = name.startswith("effects.") and EFFECTS[name.split(".", 1)[1]].breaks_symmetry
     period = 2 if breaking or params.breaks_symmetry or first_params.breaks_symmetry else 1
     if z_start is None:
-        gait = find_gait(first_params, planar=planar)
+        gait = _first_gait(params, name, start, planar, max_points, ds_max)
         if gait.period != period:
             gait = solve_fixed_point(Walker(first_params, planar=gait.planar, period=period),
                                      gait.fixed_point)

@@ -128,3 +128,15 @@ def test_continuation_to_a_bound_lands_on_it():
     # docs/gaits.md section 2: hip width helps; without it this walker's gait is unstable.
     assert_documented(branch.points[0].max_abs_eigenvalue, 0.967, 1e-3, "max |eigenvalue|, w = 34.7 mm")
     assert_documented(branch.points[-1].max_abs_eigenvalue, 1.25, 0.01, "max |eigenvalue|, w = 0")
+
+
+def test_a_stored_gait_is_followed_to_the_first_value():
+    """A walker whose file stores a start near its gait (clearing-toy: the search from the planar
+    reduction does not reach it) is continued from another value of the parameter by following its
+    own gait there first. At slope 0.065, where the stored start also converges directly, the two
+    ways give one gait (Newton's tolerance, 1e-10, times the map's conditioning)."""
+    params = load_params(DATA / "params" / "clearing-toy.toml")
+    branch = continue_branch(params, "slope", 0.065, 0.066, max_points=3)
+    assert branch.points[0].value == 0.065
+    direct = find_gait(params.replace(slope=0.065))
+    np.testing.assert_allclose(branch.points[0].fixed_point, direct.fixed_point, rtol=0, atol=1e-8)
