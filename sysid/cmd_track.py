@@ -19,6 +19,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import math
+import sys
 from pathlib import Path
 
 from toywalk.model.files import DATA_DIR as _DATA
@@ -166,4 +167,11 @@ def cmd_track(args) -> int:
                                            or math.isnan(result.raw["pitch_right"][i])))
     print(f"tracked {n} frames ({both} with both legs), {len(result.events)} heel strikes; "
           f"ramp pose: {result.ramp['source']}; markers: {markers_path.name} ({markers_from}) -> {out}")
+    if n and (both < 0.9 * n or len(result.events) < 3):
+        # The files are written (a user may still want the angles), but fit and diagnose need
+        # both legs and at least three strikes: say so now, with the likely cause.
+        print(f"toywalk track: warning: a leg was lost in {n - both} of {n} frames and "
+              f"{len(result.events)} heel strikes were found (fit needs 3); fast legs blur at low "
+              "frame rates or long exposures: film at 120 frames/s or more, or check the overlay "
+              "(--overlay)", file=sys.stderr)
     return 0

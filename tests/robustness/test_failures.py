@@ -50,3 +50,18 @@ def test_fit_that_does_not_converge(walk, tmp_path, capfd, monkeypatch):
     report = json.loads(out.read_text())
     assert report["success"] is False and report["status"] == "Maximum_Iterations_Exceeded"
     assert [p.name for p in tmp_path.iterdir()] == ["fit.json"]  # no temporary file left
+
+
+def test_track_warns_when_the_walk_cannot_be_fitted(video, tmp_path, capfd):
+    """A clip too short (13 frames, 0.4 s: fewer than three heel strikes) tracks, and the files
+    are written whole, but fit and diagnose will refuse it: track says so at once, in one warning
+    line naming the count, instead of leaving the user to find out a command later."""
+    out = tmp_path / "m.csv"
+    outcome = toywalk(capfd, "track", video, "--camera", video.with_suffix(".camera.json"),
+                      "--markers", video.with_suffix(".markers.json"), "--out", out)
+    assert outcome.code == 0, outcome.err
+    table = read_trajectory(out)
+    assert len(table.events) < 3
+    lines = outcome.err_lines
+    assert len(lines) == 1 and lines[0].startswith("toywalk track: warning: "), outcome.err
+    assert f"{len(table.events)} heel strikes were found (fit needs 3)" in lines[0]
