@@ -838,10 +838,14 @@ class _Problem:
                 notes.append(f"{name} = {theta[j]:.6g} sits on its bound [{lo:g}, {hi:g}]: its "
                              "standard error assumes it could move past it")
         check = self.fd_check(x, sigma, jac) if self.free and self.check_jacobian else {}
-        bad = {k: v for k, v in check.items() if v is None or v > 1e-3}
+        bad = {k: v for k, v in check.items() if v is not None and v > 1e-3}
+        unchecked = sorted(k for k, v in check.items() if v is None)
         if bad:
             notes.append(f"the AD and finite-difference Jacobians disagree for {sorted(bad)}: "
                          f"{bad} (relative); the covariance may be unreliable")
+        if unchecked:
+            notes.append(f"the AD Jacobian could not be checked by finite differences for "
+                         f"{unchecked}: the gait's re-solve at a perturbed value did not converge")
         res = self.angle_residuals(x)
         rms, by_phase = {}, {}
         bins = np.minimum((obs.phase * _PHASE_BINS).astype(int), _PHASE_BINS - 1)
