@@ -66,9 +66,10 @@ def cmd_sample(args) -> int:
         write_report(out, data, Path(args.report), posterior_from_fit(report, table)[0], table)
     for name in summary.names:
         q5, q50, q95 = data["quantiles_5_50_95"][name]
-        rhat = data["rhat"][name] if data["rhat"] else math.nan
+        rhat = data["rhat"][name] if data["rhat"] and data["rhat"][name] is not None else math.nan
+        tau = data["autocorrelation_time"][name]
         print(f"{name:<28s} median {q50:.6g}  90 % [{q5:.6g}, {q95:.6g}]  tau "
-              f"{data['autocorrelation_time'][name]:.1f}  R-hat {rhat:.3f}")
+              f"{'(never moved)' if tau is None else f'{tau:.1f}'}  R-hat {rhat:.3f}")
     if data["probability_stable"] is not None:
         print(f"P(stable gait) {data['probability_stable']:.3f}; no gait in "
               f"{100 * data['fraction_no_gait']:.1f} % of proposals")

@@ -141,10 +141,12 @@ def write_report(chain: Path, summary: dict, folder: Path, post=None, table=None
              "| --- | --- | --- | --- | --- | --- | --- | --- |"]
     for n in names:
         q5, q50, q95 = summary["quantiles_5_50_95"][n]
-        rhat = summary["rhat"][n] if summary["rhat"] else float("nan")
-        ess = summary["ess_bulk"][n] if summary["ess_bulk"] else float("nan")
+        rhat = (summary["rhat"] or {}).get(n)
+        ess = (summary["ess_bulk"] or {}).get(n)
+        tau = summary["autocorrelation_time"][n]
         lines.append(f"| {n} | {q50:.6g} | {q5:.6g} | {q95:.6g} | {summary['std'][n]:.3g} | "
-                     f"{summary['autocorrelation_time'][n]:.1f} | {rhat:.3f} | {ess:.0f} |")
+                     f"{'never moved' if tau is None else f'{tau:.1f}'} | "
+                     f"{'-' if rhat is None else f'{rhat:.3f}'} | {'-' if ess is None else f'{ess:.0f}'} |")
     if summary.get("probability_stable") is not None:
         lines += ["", f"Probability that the fitted gait is stable: {summary['probability_stable']:.3f}."]
     lines += ["", "![trace](trace.png)", "", "![corner](corner.png)", "",

@@ -407,7 +407,8 @@ def diagnose_chains(path: str | Path, names, ensembles: int, n_steps: int = 0,
     eig = eig[np.isfinite(eig)]
     data = {
         "length": int(length), "burn_in": burn, "thin": thin,
-        "autocorrelation_time": dict(zip(names, map(float, tau), strict=True)),  # inf: never moved
+        # null (not JSON's non-standard Infinity) for a parameter no walker ever moved
+        "autocorrelation_time": {n: _finite(t) for n, t in zip(names, tau, strict=True)},
         "long_enough": converged,
         "stop_rule": f"chain length > {TAU_FACTOR} integrated autocorrelation times",
         "acceptance_fraction": acceptance,
@@ -440,4 +441,11 @@ def _arviz_stats(stacked: np.ndarray, names) -> tuple[dict, dict]:
         data = az.convert_to_inference_data({n: stacked[..., i] for i, n in enumerate(names)})
         rhat = az.rhat(data)
         ess = az.ess(data, method="bulk")
-    return ({n: float(rhat[n]) for n in names}, {n: float(ess[n]) for n in names})
+    return ({n: _finite(rhat[n]) for n in names}, {n: _finite(ess[n]) for n in names})
+
+
+def _finite(value) -> float | None:
+    """``value`` as a float, or None where it is not finite (a statistic of a chain that never
+    moved): the summary file is strict JSON, which has no Infinity or NaN."""
+    value = float(value)
+    return value if math.isfinite(value) else None
