@@ -119,12 +119,12 @@ def _point(gait: Gait, value: float) -> BranchPoint:
                        clearance=swing.minimum, clearance_ahead=swing.ahead)
 
 
-def _first_gait(params: Params, name: str, start: float, planar, max_points: int, ds_max: float) -> Gait:
-    """The gait at ``name = start``. A walker that stores a start near its own gait (``[gait]
-    start``, found past a fold of the search's homotopy) has its gait followed from its own value
-    to ``start``, where the search alone may not reach it; otherwise, or if that stops short,
-    :func:`find_gait`."""
-    first = params.replace(**{name: start})
+def _first_gait(params: Params, first: Params, name: str, start: float, planar, max_points: int,
+                ds_max: float) -> Gait:
+    """The gait of ``first`` (``params`` with ``name = start``). A walker that stores a start near
+    its own gait (``[gait] start``, found past a fold of the search's homotopy) has its gait
+    followed from its own value to ``start``, where the search alone may not reach it; otherwise,
+    or if that stops short, :func:`find_gait`."""
     own = params.get(name)
     if params.gait_start is None or own == start:
         return find_gait(first, planar=planar)
@@ -185,7 +185,7 @@ def continue_branch(params: Params, name: str, start: float, end: float, max_poi
     breaking = name.startswith("effects.") and EFFECTS[name.split(".", 1)[1]].breaks_symmetry
     period = 2 if breaking or params.breaks_symmetry or first_params.breaks_symmetry else 1
     if z_start is None:
-        gait = _first_gait(params, name, start, planar, max_points, ds_max)
+        gait = _first_gait(params, first_params, name, start, planar, max_points, ds_max)
         if gait.period != period:
             gait = solve_fixed_point(Walker(first_params, planar=gait.planar, period=period),
                                      gait.fixed_point)

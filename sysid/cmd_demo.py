@@ -204,12 +204,12 @@ def _lens_errors(calibrated_path: Path, truth_path: Path) -> dict:
     """The calibrated lens against the one the video was rendered with (data/sample/
     walk.camera.json, read only after the analysis): each intrinsic's error with the calibration's
     own standard error; printed and returned."""
-    import json
+    from toywalk.model.files import read_json_object
+    from toywalk.tracking.camera import Camera, CameraError, load_camera
 
-    from toywalk.tracking.camera import load_camera
-
-    got, true = load_camera(calibrated_path), load_camera(truth_path)
-    std = json.loads(calibrated_path.read_text())["calibration"]["std"]
+    calibration = read_json_object(calibrated_path, "camera file", CameraError)
+    got, true = Camera.from_dict(calibration), load_camera(truth_path)
+    std = calibration["calibration"]["std"]
     values = {"fx": (got.matrix[0, 0], true.matrix[0, 0]), "fy": (got.matrix[1, 1], true.matrix[1, 1]),
               "cx": (got.matrix[0, 2], true.matrix[0, 2]), "cy": (got.matrix[1, 2], true.matrix[1, 2]),
               "k1": (got.distortion[0], true.distortion[0]), "k2": (got.distortion[1], true.distortion[1])}
