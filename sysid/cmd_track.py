@@ -125,8 +125,8 @@ def cmd_track(args) -> int:
         "source": {"kind": "video", "video": str(video), "sha256": _sha256(video),
                    "frames": n, "width": source.width, "height": source.height,
                    "nominal_fps": source.nominal_fps},
-        "timestamps": "per-frame container timestamps (OpenCV CAP_PROP_POS_MSEC read after each "
-                      "frame), not an assumed frame rate",
+        "timestamps": result.timestamps["description"],
+        "timestamp_policy": result.timestamps,
         "units": {"time": "s", "angles": "rad", "sd": "rad"},
         "camera": {"file": str(camera_path),
                    "use": "as given" if args.camera else "bundled default: intrinsics only",

@@ -28,6 +28,7 @@ import math
 import cv2
 import numpy as np
 
+from ..model.kinematics import pitch_angle
 from .camera import Camera, undistort_pixels
 
 __all__ = ["WalkerPose", "fit_walker", "rot_y", "walker_from_legs"]
@@ -125,8 +126,7 @@ def walker_from_legs(legs: dict, hip_width: float, prefer: str | None = None):
     pitch[ref] = 0.0
     for f in feet:
         if f != ref:
-            local = axle.T @ legs[f][0]
-            pitch[f] = math.atan2(local[0, 2], local[2, 2])
+            pitch[f] = pitch_angle(axle.T @ legs[f][0])
     hip = np.asarray(t, float) - (hip_width * axle[:, 1] if ref == "L" else 0.0)
     return np.asarray(axle, float), pitch, hip
 

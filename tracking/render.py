@@ -1,7 +1,10 @@
 """The synthetic video renderer: a trajectory drawn as the camera would film the walking toy.
 
 Frame ``k`` of a video at ``fps`` frames per second shows the trajectory at ``t0 + k / fps``
-(``t0`` = the trajectory's first sample unless ``start`` is given). The walker between samples is
+(``t0`` = the trajectory's first sample unless ``start`` is given), or at ``frame_times[k]`` where
+those are given (a variable-frame-rate video; the file itself is written at the constant rate
+``fps``, as ``cv2.VideoWriter`` cannot stamp frames, so the given times are the truth's and a
+caller re-stamps the container, e.g. tests/tracking/mp4times.py). The walker between samples is
 interpolated: the four angles and the left hip point (both continuous through heel strikes) with
 monotone cubic (PCHIP) interpolation, so that the rolling contact need not be re-integrated; the
 stance leg switches at the heel-strike events. With motion blur the shutter is open over
@@ -43,6 +46,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 from toywalk.model.files import software_version as _version
+from toywalk.model.kinematics import lowest_point
 
 from .camera import Camera
 from .markers import MarkerLayout, default_layout
@@ -92,6 +96,10 @@ class RenderOptions:
         Time of frame 0 (s); None = the trajectory's first sample.
     duration : float or None
         Length to render (s); None = to the trajectory's last sample.
+    frame_times : tuple of float or None
+        Times (s) of the frames, increasing, within the trajectory; None = ``t0 + k / fps`` from
+        ``start`` and ``duration`` (which must be None when times are given). ``fps`` is then the
+        video file's nominal rate and sets the shutter time ``exposure / fps``.
     shadows : bool
         Draw the walker's shadow on the ramp.
     level : int or None
@@ -108,6 +116,7 @@ class RenderOptions:
     codec: str | None = None
     start: float | None = None
     duration: float | None = None
+    frame_times: tuple | None = None
     shadows: bool = True
     level: int | None = None
 
@@ -139,6 +148,18 @@ class RenderOptions:
             finite("start", lo=-math.inf)
         if self.duration is not None:
             finite("duration", strict=True)
+        if self.frame_times is not None:
+            try:
+                times = tuple(float(t) for t in self.frame_times)
+            except (TypeError, ValueError) as err:
+                raise RenderError(f"frame_times must be a sequence of times (s), "
+                                  f"got {self.frame_times!r}") from err
+            if not times or not all(math.isfinite(t) for t in times) or \
+                    any(b <= a for a, b in zip(times, times[1:], strict=False)):
+                raise RenderError("frame_times must be finite times (s), increasing strictly, at least one")
+            if self.start is not None or self.duration is not None:
+                raise RenderError("give frame_times or start/duration, not both")
+            object.__setattr__(self, "frame_times", times)  # a tuple: the options stay hashable
 
     @classmethod
     def preset(cls, level: int, **overrides) -> RenderOptions:
@@ -282,24 +303,11 @@ class Motion:
 
     def contact(self, state: WalkerState, stance: str) -> np.ndarray:
         """The stance foot's lowest point (x, y) on the ramp (m), from the placed legs."""
-        return _lowest_point(self.params, state, stance)[:2]
+        return lowest_point(self.params, state.rotation[stance], state.hip[stance])[:2]
 
     def hips(self, times) -> np.ndarray:
         """The mid-point of the two hip points (ramp frame, m), shape (k, 3), at ``times`` (k,)."""
         return np.array([0.5 * (s.hip["L"] + s.hip["R"]) for s in map(self.state, times)])
-
-
-def _lowest_point(params, state: WalkerState, leg: str) -> np.ndarray:
-    """The lowest point of a leg's foot (ramp frame, m) (model.md section 2)."""
-    rot = state.rotation[leg]
-    ell, r, rho = float(params.leg_length), float(params.foot_radius), float(params.foot_lateral_radius)
-    centre = state.hip[leg] - (ell - r) * rot[:, 2]
-    n = rot[:, 1]
-    ez = np.array([0.0, 0.0, 1.0])
-    t = -ez + n[2] * n
-    norm = np.linalg.norm(t)
-    t = t / norm if norm > 0 else -ez
-    return centre + (r - rho) * t - rho * ez
 
 
 def _integrate_contact(params, ang: np.ndarray, stance: np.ndarray) -> np.ndarray:
@@ -313,9 +321,7 @@ def _integrate_contact(params, ang: np.ndarray, stance: np.ndarray) -> np.ndarra
         s0, s1 = str(stance[i - 1]), str(stance[i])
         poses0 = leg_poses(params, steer0, lean0, pl0, pr0, s0, contact[i - 1])
         if s1 != s0:  # heel strike in between: the landing foot's lowest point
-            rot = {k: poses0.rotation[k] for k in "LR"}
-            state = WalkerState(rotation=rot, hip=poses0.hip)
-            contact[i] = _lowest_point(params, state, s1)[:2]
+            contact[i] = lowest_point(params, poses0.rotation[s1], poses0.hip[s1])[:2]
             continue
         poses1 = leg_poses(params, steer1, lean1, pl1, pr1, s0, (0.0, 0.0))
         r0, r1 = poses0.rotation[s0], poses1.rotation[s0]
@@ -384,6 +390,12 @@ def _draw_occluder(img: np.ndarray, event, k: int) -> None:
 
 def _frame_times(motion: Motion, options: RenderOptions) -> np.ndarray:
     t_first, t_last = motion.span
+    if options.frame_times is not None:
+        times = np.array(options.frame_times)
+        if times[0] < t_first - 1e-12 or times[-1] > t_last + 1e-12:
+            raise RenderError(f"frame_times {times[0]} .. {times[-1]} s reach outside the trajectory "
+                              f"({t_first} .. {t_last} s)")
+        return times
     t0 = t_first if options.start is None else float(options.start)
     t_end = t_last if options.duration is None else min(t_last, t0 + float(options.duration))
     if t0 < t_first - 1e-12 or t0 > t_last:
@@ -606,8 +618,10 @@ def render(table, params, camera: Camera, layout: MarkerLayout, options: RenderO
                        "trajectory_source": table.metadata.get("source"),
                        "contact": motion.contact_source,
                        "interpolation": "PCHIP (angles, left hip point)"},
-            "timestamps": ("frame k shows the trajectory at t0 + k / fps; with motion blur the shutter "
-                           "is open over t +- exposure / (2 fps)"),
+            "timestamps": (("frame k shows the trajectory at t0 + k / fps" if options.frame_times is None
+                            else "frame k shows the trajectory at frame_times[k] (given; the video file "
+                                 "is stamped t0 + k / fps)")
+                           + "; with motion blur the shutter is open over t +- exposure / (2 fps)"),
             "motion_blur": {"renders_per_frame": film.subframes.tolist(), "max_step_px": BLUR_STEP_PX}
             if film.blur else None,
             "contact": "the stance foot's lowest point, from the drawn geometry",

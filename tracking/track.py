@@ -1,13 +1,20 @@
 """Video to trajectory: markers, leg poses, walker angles, heel strikes (pipeline.md, ``track``).
 
-Per frame (:class:`Tracker`):
+The stages, one module each: the video's frames and their times (:mod:`toywalk.tracking.video`),
+per-frame tracking (this module's :class:`Tracker`), the angles and their SDs
+(:mod:`toywalk.tracking.angles`), heel strikes (:mod:`toywalk.tracking.events`), smoothing
+(:mod:`toywalk.tracking.smooth`) and the result (:mod:`toywalk.tracking.results`).
+:func:`track_video` runs them on a file, :func:`track_frames` on any ``(time, image)`` sequence.
+
+Per frame (:meth:`Tracker.process`):
 
 1. predict each body's pose from its last two (constant velocity) and search for markers only in
    regions of interest around the predicted corners of its markers that face the camera; the whole
    frame is searched when a body has no prediction (not yet found, or lost), at growing intervals
    while it stays lost;
 2. estimate each body's pose in the camera frame from all its visible marker corners jointly
-   (:func:`toywalk.tracking.pose.estimate_pose`), with ``(J^T J)^-1`` kept for the covariance.
+   (:func:`toywalk.tracking.pose.estimate_pose`; both legs at once, :mod:`toywalk.tracking.joint`),
+   with ``(J^T J)^-1`` kept for the covariance.
 
 After the last frame (:meth:`Tracker.finish`):
 
@@ -16,17 +23,18 @@ After the last frame (:meth:`Tracker.finish`):
    if the frames disagree (a moving camera), each frame's own; a camera file's fixed
    ``ramp_pose`` is checked against it, refused if they disagree beyond the measurement's
    accuracy, and used where they agree or no ramp marker is seen;
-4. the leg rotations in the ramp frame give ``steer, lean, pitch_left, pitch_right`` through
-   :func:`toywalk.model.kinematics.angles_from_rotations` (one leg seen: steer and lean from that
-   leg's hip axis, the other pitch a gap); standard deviations propagate
-   ``sigma^2 (J^T J)^-1``, with the pixel noise ``sigma`` pooled over the video from the
-   reprojection residuals, through the angle functions (finite differences);
+4. the leg rotations in the ramp frame give ``steer, lean, pitch_left, pitch_right`` and their
+   standard deviations (:mod:`toywalk.tracking.angles`);
 5. frames whose angles jump away from both neighbouring stretches (a mirrored single-marker pose)
    become gaps; heel strikes and stance (:mod:`toywalk.tracking.events`) from the raw pitches;
-6. a smoothed copy of the signals (Savitzky-Golay, Savitzky & Golay 1964, Anal. Chem. 36:1627,
-   doi:10.1021/ac60214a047) over stretches without gaps or heel strikes (the rates jump there).
+6. a smoothed copy of the signals (:mod:`toywalk.tracking.smooth`).
 
-Missing samples are NaN, never invented. Times are the container's per-frame timestamps.
+Missing samples are NaN, never invented. Times are the frames' own: the container's per-frame
+timestamps (:mod:`toywalk.tracking.video`), uneven in a variable-frame-rate video.
+
+:class:`TrackError`, :class:`FrameSource`, :func:`open_video`, :class:`TrackResult`,
+:func:`walker_angles` and :func:`walker_angles_with_sd` are importable from here too, where they
+were defined before the split.
 """
 
 from __future__ import annotations
@@ -38,10 +46,9 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from scipy.signal import savgol_coeffs, savgol_filter
 
-from ..model.kinematics import angles_from_rotations, rotation
-from ..model.trajectory import SIGNALS, TrajectoryTable
+from ..model.trajectory import SIGNALS
+from .angles import pooled_pixel_sd, pooled_walker_sd, walker_angles, walker_angles_with_sd
 from .camera import Camera
 from .detect import MarkerDetector, merge_regions
 from .events import (
@@ -52,113 +59,20 @@ from .events import (
     stance_from_events,
     step_samples,
 )
-from .joint import FEET, WalkerPose, fit_walker, rot_y, walker_from_legs
+from .joint import WalkerPose, fit_walker, walker_from_legs
 from .markers import MarkerLayout, body_points
 from .pose import PoseEstimate, estimate_pose
 from .ramp import fixed_ramp, measure_ramp
+from .results import TrackResult
+from .smooth import smooth_signals
+from .video import FrameSource, TrackError, open_video, timestamp_summary
 
-__all__ = ["FrameSource", "TrackError", "TrackResult", "Tracker", "angles_with_sd", "open_video",
-           "track_frames", "track_video", "walker_angles", "walker_angles_with_sd"]
+__all__ = ["FrameSource", "TrackError", "TrackResult", "Tracker", "open_video", "track_frames",
+           "track_video", "walker_angles", "walker_angles_with_sd"]
 
 LEGS = {"left_leg": "L", "right_leg": "R"}
 _WIDTH_SAMPLES = 25  # frames whose joint fits estimate the hip width (when not given)
 
-
-class TrackError(ValueError):
-    """Bad input to the tracker (unreadable video, size mismatch, no markers): one-line message."""
-
-
-# --- video input ----------------------------------------------------------------------------------
-
-class FrameSource:
-    """Frames of a video file with the container's timestamps.
-
-    Iterating yields ``(time, image)``: seconds (``CAP_PROP_POS_MSEC`` read after each frame, the
-    presentation time of that frame) and a BGR array (rows, cols, 3). At the end it checks that as
-    many frames decoded as the container declares and that the times increase, raising
-    :class:`TrackError` otherwise (a truncated or corrupt file).
-    """
-
-    def __init__(self, path: str | Path):
-        self.path = Path(path)
-        if not self.path.exists():
-            raise TrackError(f"video file not found: {self.path}")
-        if not self.path.is_file():
-            raise TrackError(f"not a video file: {self.path}")
-        _check_container(self.path)
-        self._cap = cv2.VideoCapture(str(self.path))
-        if not self._cap.isOpened():
-            raise TrackError(f"cannot open video {self.path}: not a readable video file (corrupt or "
-                             "truncated?)")
-        self.declared_frames = int(self._cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
-        self.width = int(self._cap.get(cv2.CAP_PROP_FRAME_WIDTH))
-        self.height = int(self._cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
-        self.nominal_fps = float(self._cap.get(cv2.CAP_PROP_FPS) or 0.0)
-        self.frames_read = 0
-        self.decode_seconds = 0.0
-
-    def __iter__(self):
-        last = -math.inf
-        try:
-            while True:
-                start = _time.perf_counter()
-                ok, image = self._cap.read()
-                self.decode_seconds += _time.perf_counter() - start
-                if not ok or image is None:
-                    break
-                t = self._cap.get(cv2.CAP_PROP_POS_MSEC) / 1000.0
-                if not (math.isfinite(t) and t > last):
-                    raise TrackError(f"{self.path}: frame {self.frames_read} has timestamp {t:.6g} s, "
-                                     f"not after the previous {last:.6g} s: unusable timestamps")
-                last = t
-                self.frames_read += 1
-                yield t, image
-        finally:
-            self._cap.release()
-        if self.frames_read == 0:
-            raise TrackError(f"{self.path}: no frame could be decoded (corrupt or empty video)")
-        if self.declared_frames > 0 and self.frames_read < self.declared_frames:
-            raise TrackError(f"{self.path}: decoded only {self.frames_read} of the "
-                             f"{self.declared_frames} frames the container declares (truncated or corrupt)")
-
-
-#: What the first bytes of a video file are for its suffix: an ISO base-media (MP4, QuickTime)
-#: file starts with a box whose type is at bytes 4-8 (ISO/IEC 14496-12; QuickTime files may open
-#: with moov, mdat or a free-space box); an AVI file is a RIFF file of form "AVI " (bytes 8-12).
-_CONTAINERS = {
-    ".mp4": ("MP4", lambda head: head[4:8] in (b"ftyp", b"moov", b"mdat", b"free", b"skip", b"wide")),
-    ".m4v": ("MP4", lambda head: head[4:8] in (b"ftyp", b"moov", b"mdat", b"free", b"skip", b"wide")),
-    ".mov": ("QuickTime", lambda head: head[4:8] in (b"ftyp", b"moov", b"mdat", b"free", b"skip",
-                                                     b"wide", b"pnot")),
-    ".avi": ("AVI", lambda head: head[:4] == b"RIFF" and head[8:12] == b"AVI "),
-}
-
-
-def _check_container(path: Path) -> None:
-    """Refuse a file whose first bytes are not the container its suffix names (an image, a text
-    file or a video cut at its start): FFmpeg would otherwise guess, e.g. read an MP4 that lost its
-    first bytes as a raw stream with invented timestamps."""
-    kind = _CONTAINERS.get(path.suffix.lower())
-    if kind is None:
-        return
-    try:
-        with open(path, "rb") as fh:
-            head = fh.read(12)
-    except OSError as err:
-        raise TrackError(f"cannot read video {path}: {err.strerror or err}") from err
-    if not head:
-        raise TrackError(f"cannot open video {path}: the file is empty")
-    if not kind[1](head):
-        raise TrackError(f"cannot open video {path}: not an {kind[0]} file (its first bytes are not "
-                         f"an {kind[0]} header): a mislabelled file, or a video cut at its start")
-
-
-def open_video(path: str | Path) -> FrameSource:
-    """A :class:`FrameSource` for ``path`` (raises :class:`TrackError` if it cannot be opened)."""
-    return FrameSource(path)
-
-
-# --- per-frame tracking ---------------------------------------------------------------------------
 
 @dataclasses.dataclass
 class _Body:
@@ -207,6 +121,12 @@ class Tracker:
         ``hip_width``). None estimates it as the median of the joint fits with the width free in
         the first 25 frames in which both legs show two markers or more; :meth:`finish` refits
         the frames fitted with another width.
+
+    Notes
+    -----
+    The constant-velocity prediction steps by frames, not seconds: it only places the search
+    regions, whose margins hold a frame's motion. The frames' times (uneven at a variable frame
+    rate) enter the heel strikes and the result.
     """
 
     def __init__(self, camera: Camera, layout: MarkerLayout, *, roi: bool = True,
@@ -296,9 +216,20 @@ class Tracker:
         return uv.reshape(-1, 2)
 
     def process(self, t: float, image: np.ndarray) -> dict:
-        """Track one frame (time ``t`` in s, BGR or grey image); returns this frame's record.
+        """Track one frame.
 
-        The record holds ``markers`` (id -> corners (4, 2)) and ``poses`` (body -> PoseEstimate).
+        Parameters
+        ----------
+        t : float
+            The frame's time (s), after the previous frame's.
+        image : ndarray, shape (rows, cols[, 3])
+            BGR or grey, the camera's size.
+
+        Returns
+        -------
+        dict
+            This frame's record: ``markers`` (id -> corners (4, 2), pixels), ``poses`` (body ->
+            PoseEstimate) and ``recovered`` (leg marker ids found by :meth:`_recover`).
         """
         start = _time.perf_counter()
         frame = len(self.times)
@@ -572,7 +503,24 @@ class Tracker:
         return image
 
     def finish(self, *, smoothing_window: int = 7, smoothing_order: int = 3) -> TrackResult:
-        """Angles, their standard deviations, heel strikes, stance and smoothed signals."""
+        """Angles, their standard deviations, heel strikes, stance and smoothed signals.
+
+        Parameters
+        ----------
+        smoothing_window, smoothing_order : int
+            The Savitzky-Golay filter of the smoothed copy (:mod:`toywalk.tracking.smooth`).
+
+        Returns
+        -------
+        TrackResult
+            Its ``timestamps`` are left for the caller that knows the frames' source
+            (:func:`track_frames`).
+
+        Raises
+        ------
+        TrackError
+            No frames, no leg marker in any frame, or no ramp frame.
+        """
         n = len(self.times)
         if n == 0:
             raise TrackError("no frames to track")
@@ -581,8 +529,8 @@ class Tracker:
         if not any(seen.values()):
             raise TrackError(f"no leg markers found in any of the {n} frames")
         walker = self._final_walker()
-        pixel_sd = {name: _pooled_pixel_sd(self.poses[name]) for name in self.bodies if name not in LEGS}
-        legs_sd = _pooled_walker_sd(walker)
+        pixel_sd = {name: pooled_pixel_sd(self.poses[name]) for name in self.bodies if name not in LEGS}
+        legs_sd = pooled_walker_sd(walker)
         pixel_sd.update({name: legs_sd for name in LEGS if name in self.bodies})
         ramp = self._ramp_frame(n, pixel_sd.get("ramp"))
         raw = {k: np.full(n, np.nan) for k in SIGNALS}
@@ -604,7 +552,7 @@ class Tracker:
         # better than 5 (benchmarks/TRACKING.md); the kink still has 7 frames on each side at 60 fps
         events = heel_strikes(time, raw["pitch_left"], raw["pitch_right"], half_window=7)
         stance = stance_from_events(time, events, raw["pitch_left"], raw["pitch_right"])
-        smooth, smooth_sd = _smooth(time, raw, sd, events, smoothing_window, smoothing_order)
+        smooth, smooth_sd = smooth_signals(time, raw, sd, events, smoothing_window, smoothing_order)
         return TrackResult(time=time, raw=raw, raw_sd=sd, smooth=smooth, smooth_sd=smooth_sd,
                            stance=stance, events=events, pixel_sd=pixel_sd, ramp=ramp.summary,
                            frames_with=seen, counts=dict(self.counts),
@@ -671,230 +619,40 @@ def _angle_between(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.arccos(np.clip((np.trace(a @ b.T) - 1) / 2, -1.0, 1.0)))
 
 
-def _pooled_pixel_sd(poses) -> float:
-    """Pixel noise SD pooled over frames, robustly: the median over frames of each frame's residual
-    RMS corrected for the six fitted parameters (``rms * sqrt(2n / (2n - 6))``), scaled so that
-    it estimates the SD for Gaussian noise (the median of a chi distribution lies below its RMS)."""
-    values = [p.rms * math.sqrt(2 * p.n_points / (2 * p.n_points - 6))
-              for p in poses if p is not None and 2 * p.n_points > 6]
-    if not values:
-        return 0.5  # pixels: a conservative guess when no frame has redundant points
-    dof = np.median([2 * p.n_points - 6 for p in poses if p is not None and 2 * p.n_points > 6])
-    from scipy.stats import chi
-
-    ratio = chi.median(dof) / math.sqrt(dof)  # median of rms/sigma for dof degrees of freedom
-    return max(float(np.median(values)) / ratio, 0.02)  # floor: sub-pixel corners are never better
-
-
-def _pooled_walker_sd(poses) -> float:
-    """Pixel noise SD pooled over the joint leg fits, as :func:`_pooled_pixel_sd`."""
-    good = [p for p in poses if p is not None and p.dof > 0]
-    if not good:
-        return 0.5  # pixels: a conservative guess when no frame has redundant points
-    values = [p.rms * math.sqrt((p.dof + len(p.names)) / p.dof) for p in good]
-    dof = float(np.median([p.dof for p in good]))
-    from scipy.stats import chi
-
-    ratio = chi.median(dof) / math.sqrt(dof)
-    return max(float(np.median(values)) / ratio, 0.02)
-
-
-def walker_angles(r_ramp: np.ndarray, pose: WalkerPose) -> np.ndarray:
-    """(lean, steer, pitch_left, pitch_right) (rad) of a joint leg pose; NaN for an unseen leg.
-
-    ``r_ramp`` (3, 3) rotates the ramp frame into the camera frame. The hip axis b2 gives steer
-    and lean (``b2 = Rz(steer) Rx(lean) e_y``, model.md section 1), each leg its pitch about it.
-    """
-    axle = r_ramp.T @ pose.axle
-    b2 = axle[:, 1]
-    lean = math.asin(float(np.clip(b2[2], -1.0, 1.0)))
-    steer = math.atan2(-b2[0], b2[1])
-    base = rotation(steer, lean, 0.0).T @ axle
-    pitches = []
-    for f in FEET:
-        if f in pose.seen:
-            local = base @ rot_y(pose.pitch[f])
-            pitches.append(math.atan2(local[0, 2], local[2, 2]))
-        else:
-            pitches.append(math.nan)
-    return np.array([lean, steer, *pitches])
-
-
-def walker_angles_with_sd(r_ramp: np.ndarray, pose: WalkerPose, pixel_sd: float,
-                          ramp_covariance=None) -> tuple[dict, dict]:
-    """Angles of a joint leg pose and their SDs (dicts of SIGNALS name -> rad).
-
-    The covariance ``pixel_sd^2 (J^T J)^-1`` of the fit is propagated through
-    :func:`walker_angles` by finite differences. It is inflated by ``(rms / rms_expected)^2`` when
-    the frame's residual exceeds what the pooled pixel noise explains (blur, a bent edge): such
-    a pose is less certain than its Jacobian says. ``ramp_covariance`` (3, 3), rad^2, of the ramp
-    rotation's error about its own axes (:mod:`toywalk.tracking.ramp`), where it is this frame's
-    own, is propagated alike and added.
-    """
-    base = walker_angles(r_ramp, pose)
-    angular = [j for j, name in enumerate(pose.names) if name in ("d1", "d3", "pitch_L", "pitch_R")]
-    h = 1e-7
-    jac = np.zeros((4, len(angular)))
-    for c, j in enumerate(angular):
-        step = np.zeros(len(pose.names))
-        step[j] = h
-        jac[:, c] = (walker_angles(r_ramp, pose.perturbed(step)) - base) / h
-    jac = np.nan_to_num(jac)
-    cov = pose.normal[np.ix_(angular, angular)] * pixel_sd**2
-    if pose.dof > 0:
-        expected = pixel_sd * math.sqrt(pose.dof / (pose.dof + len(pose.names)))
-        cov = cov * max(1.0, (pose.rms / expected) ** 2)
-    var = np.einsum("ij,jk,ik->i", jac, cov, jac)
-    if ramp_covariance is not None and np.all(np.isfinite(ramp_covariance)):
-        turned = np.zeros((4, 3))
-        for j in range(3):
-            step = np.zeros(3)
-            step[j] = h
-            turned[:, j] = (walker_angles(r_ramp @ cv2.Rodrigues(step)[0], pose) - base) / h
-        turned = np.nan_to_num(turned)
-        var = var + np.einsum("ij,jk,ik->i", turned, np.asarray(ramp_covariance, float), turned)
-    sd = np.sqrt(np.maximum(var, 0.0))
-    sd[~np.isfinite(base)] = np.nan
-    names = ("lean", "steer", "pitch_left", "pitch_right")
-    return dict(zip(names, base, strict=True)), dict(zip(names, sd, strict=True))
-
-
-def _angles(r_ramp: np.ndarray, rvecs: dict) -> np.ndarray:
-    """(lean, steer, pitch_left, pitch_right) from leg rvecs (camera frame); NaN for a missing leg."""
-    rot = {f: r_ramp.T @ cv2.Rodrigues(np.asarray(v, float).reshape(3, 1))[0] for f, v in rvecs.items()}
-    if "L" in rot and "R" in rot:
-        steer, lean, pl, pr = angles_from_rotations(rot["L"], rot["R"])
-        return np.array([lean, steer, pl, pr])
-    foot, r = next(iter(rot.items()))
-    b2 = r[:, 1]
-    lean = float(np.arcsin(np.clip(b2[2], -1.0, 1.0)))
-    steer = float(np.arctan2(-b2[0], b2[1]))
-    local = rotation(steer, lean, 0.0).T @ r
-    pitch = float(np.arctan2(local[0, 2], local[2, 2]))
-    return np.array([lean, steer, pitch if foot == "L" else np.nan, pitch if foot == "R" else np.nan])
-
-
-def angles_with_sd(r_ramp: np.ndarray, legs: dict) -> tuple[dict, dict]:
-    """Walker angles and their SDs from leg orientations seen by the camera.
+def track_frames(frames, camera: Camera, layout: MarkerLayout, *, overlay=None, roi: bool = True,
+                 hip_width: float | None = None, **finish_options) -> TrackResult:
+    """Track a sequence of frames.
 
     Parameters
     ----------
-    r_ramp : ndarray, shape (3, 3)
-        Rotation of the ramp frame into the camera frame.
-    legs : dict {'L', 'R'} -> (rvec, covariance)
-        Each seen leg's rotation (camera frame, Rodrigues, rad) and its 3x3 covariance (rad^2).
+    frames : iterable of (float, ndarray)
+        ``(time, image)``: each frame's time (s, increasing; a variable frame rate is fine) and
+        its BGR or grey image (rows, cols[, 3]); a :class:`FrameSource` for a video file.
+    camera : Camera
+    layout : MarkerLayout
+    overlay : callable, optional
+        ``overlay(image)`` receives each annotated frame (:meth:`Tracker.draw`).
+    roi : bool
+        As in :class:`Tracker`.
+    hip_width : float, optional
+        As in :class:`Tracker` (m; None: estimated from the video).
+    **finish_options
+        Passed to :meth:`Tracker.finish` (``smoothing_window``, ``smoothing_order``).
 
     Returns
     -------
-    values, sds : dict of SIGNALS name -> float (rad); NaN for the pitch of a leg not seen.
+    TrackResult
+        With ``timestamps`` the :class:`FrameSource`'s policy, or ``"given"`` for other frames.
     """
-    base = _angles(r_ramp, {f: v[0] for f, v in legs.items()})
-    var = np.zeros(4)
-    h = 1e-6
-    for foot, (_, cov) in legs.items():
-        jac = np.zeros((4, 3))
-        for j in range(3):
-            step = np.zeros(3)
-            step[j] = h
-            shifted = {f: (np.asarray(v[0], float) + step if f == foot else v[0]) for f, v in legs.items()}
-            jac[:, j] = (_angles(r_ramp, shifted) - base) / h
-        jac = np.nan_to_num(jac)
-        var += np.einsum("ij,jk,ik->i", jac, cov, jac)
-    sd = np.sqrt(var)
-    sd[~np.isfinite(base)] = np.nan
-    names = ("lean", "steer", "pitch_left", "pitch_right")
-    return dict(zip(names, base, strict=True)), dict(zip(names, sd, strict=True))
-
-
-def _smooth(time, raw, sd, events, window, order):
-    """Savitzky-Golay smoothing over stretches free of gaps and heel strikes (rates jump there)."""
-    smooth = {k: v.copy() for k, v in raw.items()}
-    smooth_sd = {k: v.copy() for k, v in sd.items()}
-    gain = math.sqrt(float(np.sum(savgol_coeffs(window, order) ** 2)))
-    cuts = np.searchsorted(time, [e.time for e in events])
-    for k in raw:
-        ok = np.isfinite(raw[k])
-        seg_id = np.cumsum(np.concatenate([[0], (np.diff(ok.astype(int)) != 0).astype(int)]))
-        breaks = np.zeros(len(time), dtype=int)
-        breaks[cuts[cuts < len(time)]] = 1
-        seg_id = seg_id * 10**6 + np.cumsum(breaks)
-        for s in np.unique(seg_id[ok]):
-            idx = np.flatnonzero((seg_id == s) & ok)
-            if len(idx) >= window:
-                smooth[k][idx] = savgol_filter(raw[k][idx], window, order, mode="interp")
-                smooth_sd[k][idx] = sd[k][idx] * gain
-    return smooth, smooth_sd
-
-
-# --- results --------------------------------------------------------------------------------------
-
-@dataclasses.dataclass
-class TrackResult:
-    """What :meth:`Tracker.finish` found.
-
-    Attributes
-    ----------
-    time : ndarray, shape (n,)
-        Frame timestamps (s).
-    raw, raw_sd : dict of str -> ndarray, shape (n,)
-        Per-frame angles ``lean, steer, pitch_left, pitch_right`` (rad) and their SDs; NaN = gap.
-    smooth, smooth_sd : dict of str -> ndarray, shape (n,)
-        The same, smoothed (see ``smoothing``).
-    stance : ndarray of str, shape (n,)
-    events : list of HeelStrike
-    pixel_sd : dict body -> float
-        Pooled reprojection noise (pixels).
-    ramp : dict
-        Where the ramp pose came from, and the pose.
-    frames_with : dict body -> int
-        Frames in which each leg's pose was found.
-    counts : dict
-        Frames, whole-frame and region searches.
-    poses : dict
-        Per frame: ``walker``, the joint leg fits (:class:`~toywalk.tracking.joint.WalkerPose` or
-        None); each leg's pose derived from them; the ramp's own fits.
-    hip_width : float
-        The hip width used (m) and, in ``hip_width_source``, where it came from.
-    """
-
-    time: np.ndarray
-    raw: dict
-    raw_sd: dict
-    smooth: dict
-    smooth_sd: dict
-    stance: np.ndarray
-    events: list
-    pixel_sd: dict
-    ramp: dict
-    frames_with: dict
-    counts: dict
-    smoothing: dict
-    poses: dict
-    track_seconds: float = 0.0
-    hip_width: float = math.nan
-    hip_width_source: str = ""
-
-    def table(self, *, smoothed: bool = False, metadata=None) -> TrajectoryTable:
-        """The trajectory-file table of the raw (default) or smoothed signals."""
-        values, sds = (self.smooth, self.smooth_sd) if smoothed else (self.raw, self.raw_sd)
-        signals = {k: values[k] for k in SIGNALS}
-        signals.update({f"{k}_sd": sds[k] for k in SIGNALS})
-        events = [{"time": e.time, "foot": e.foot, "x": math.nan, "y": math.nan, "time_sd": e.time_sd}
-                  for e in self.events]
-        return TrajectoryTable(self.time, signals, self.stance, events, metadata or {})
-
-
-def track_frames(frames, camera: Camera, layout: MarkerLayout, *, overlay=None, roi: bool = True,
-                 hip_width: float | None = None, **finish_options) -> TrackResult:
-    """Track an iterable of ``(time, image)``; ``overlay(image)`` receives each annotated frame.
-
-    ``hip_width`` (m) as in :class:`Tracker` (None: estimated from the video)."""
     tracker = Tracker(camera, layout, roi=roi, hip_width=hip_width)
     for t, image in frames:
         record = tracker.process(t, image)
         if overlay is not None:
             overlay(tracker.draw(image, record))
-    return tracker.finish(**finish_options)
+    result = tracker.finish(**finish_options)
+    result.timestamps = frames.timestamps() if isinstance(frames, FrameSource) else \
+        timestamp_summary("given", result.time)
+    return result
 
 
 def track_video(path: str | Path, camera: Camera, layout: MarkerLayout, *, overlay: str | Path | None = None,
@@ -902,8 +660,32 @@ def track_video(path: str | Path, camera: Camera, layout: MarkerLayout, *, overl
                 **finish_options) -> tuple[TrackResult, FrameSource]:
     """Track a video file; optionally write an overlay video (MPEG-4) to ``overlay``.
 
-    Returns the result and the :class:`FrameSource` (frame counts, decode time). The overlay is
-    written to a temporary name and renamed into place only if tracking succeeds.
+    Each frame's time is its presentation time in the container (:mod:`toywalk.tracking.video`;
+    ``result.timestamps`` records the policy used). The overlay is written to a temporary name
+    and renamed into place only if tracking succeeds.
+
+    Parameters
+    ----------
+    path : str or Path
+        The video file.
+    camera : Camera
+        Its image size must be the video's.
+    layout : MarkerLayout
+    overlay : str or Path, optional
+        An ``.mp4`` file to write the annotated frames to (played at the nominal frame rate).
+    roi, hip_width, **finish_options
+        As for :func:`track_frames`.
+
+    Returns
+    -------
+    result : TrackResult
+    source : FrameSource
+        Frame counts, decode time, nominal frame rate.
+
+    Raises
+    ------
+    TrackError
+        An unreadable video, a size other than the camera's, no markers.
     """
     source = open_video(path)
     if (source.width, source.height) != camera.size:
