@@ -3,7 +3,8 @@
 ::
 
     toywalk render T.csv --params P.toml [--camera C.json] [--markers M.json] [--noise LEVEL]
-                   [--seed S] [--fps F] [--size WxH] [--duration SEC] [--codec FOURCC] --out V.mp4
+                   [--seed S] [--fps F] [--size WxH] [--duration SEC] [--codec FOURCC]
+                   [--engine scene|mujoco] --out V.mp4
 
 Without ``--camera`` the camera frames the walk it is given
 (:func:`toywalk.tracking.render.default_filming`): one fixed camera placed for the walker
@@ -36,6 +37,8 @@ def register(subparsers) -> None:
     p.add_argument("--size", help="image size WxH (default: the camera's, or 1280x720)")
     p.add_argument("--duration", type=float, default=None, help="seconds to render (default: all)")
     p.add_argument("--codec", default=None, help="FourCC (default mp4v for .mp4, MJPG for .avi)")
+    p.add_argument("--engine", choices=("scene", "mujoco"), default="scene",
+                   help="renderer: the project's own (scene, default) or MuJoCo's OpenGL one (mujoco)")
     p.add_argument("--out", required=True, help="video file V.mp4 or V.avi")
     p.set_defaults(func=cmd_render)
 
@@ -123,19 +126,24 @@ def cmd_render(args) -> int:
     except LayoutError as err:
         raise CommandError(str(err).splitlines()[0]) from err
     seed = args.seed if args.seed is not None else int(np.random.SeedSequence().entropy % (2**32))
+    draw, errors = render, (RenderError,)
+    if args.engine == "mujoco":
+        from toywalk.tracking.render_mujoco import MujocoUnavailable, render_mujoco
+        draw, errors = render_mujoco, (RenderError, MujocoUnavailable)
     try:
         progress = _progress if sys.stderr.isatty() else None
-        result = render(table, params, camera, layout, options, out, rng=seed,
-                        source={"trajectory": str(traj_path), "params": str(args.params),
-                                "camera": args.camera or "default_filming(trajectory, params)",
-                                "markers": args.markers or "default_layout(params)"},
-                        progress=progress, path=path)
-    except RenderError as err:
+        result = draw(table, params, camera, layout, options, out, rng=seed,
+                      source={"trajectory": str(traj_path), "params": str(args.params),
+                              "camera": args.camera or "default_filming(trajectory, params)",
+                              "markers": args.markers or "default_layout(params)"},
+                      progress=progress, path=path)
+    except errors as err:
         raise CommandError(str(err).splitlines()[0]) from err
     if progress is not None:
         sys.stderr.write("\n")
     shot = "fixed camera" if path is None else "camera following the walker"
-    print(f"rendered {result.n_frames} frames ({camera.width}x{camera.height}, {options.fps:g} fps, "
+    engine = "" if args.engine == "scene" else " by MuJoCo"
+    print(f"rendered {result.n_frames} frames{engine} ({camera.width}x{camera.height}, {options.fps:g} fps, "
           f"noise level {args.noise}, seed {seed}, {shot}) in {result.seconds:.1f} s -> {out}; truth in "
           f"{result.paths['truth'].name}")
     return 0
