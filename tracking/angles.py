@@ -26,7 +26,8 @@ import numpy as np
 from ..model.kinematics import hip_axis_angles, pitch_angle, rotation
 from .joint import FEET, WalkerPose, rot_y
 
-__all__ = ["ANGLE_NAMES", "pooled_pixel_sd", "pooled_walker_sd", "walker_angles", "walker_angles_with_sd"]
+__all__ = ["ANGLE_NAMES", "motion_smoothed", "pooled_pixel_sd", "pooled_walker_sd", "walker_angles",
+           "walker_angles_with_sd"]
 
 #: The order of :func:`walker_angles`' values.
 ANGLE_NAMES = ("lean", "steer", "pitch_left", "pitch_right")
@@ -163,3 +164,140 @@ def pooled_walker_sd(poses) -> float:
 
     ratio = chi.median(dof) / math.sqrt(dof)
     return max(float(np.median(values)) / ratio, 0.02)
+
+
+#: The white-jerk motion model of :func:`motion_smoothed`: how diffuse the state is where nothing
+#: ties it (the first sample, and each leg's rate and acceleration just after a heel strike). A
+#: walker's leg turns at most a few rad/s and its pitch accelerates by at most a few hundred rad/s^2
+#: (stable-toy, the fastest shipped gait: 0.3 rad swings in 0.1 s); these are ten times more.
+_FREE_RATE = 30.0  # rad/s
+_FREE_ACCELERATION = 3e3  # rad/s^2
+#: log10 of the jerk densities (rad^2/s^5) tried: coarse, then refined around the best. Measured
+#: maximum-likelihood values: compass-3d 3e2, the toy 2e4, stable-toy 2e6 (benchmarks/TRACKING.md).
+_LOG_DENSITIES = np.arange(-2.0, 14.01, 1.0)
+_REFINE = np.arange(-0.75, 0.76, 0.25)
+
+
+def _white_jerk(dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Transition (3, 3) of (angle, rate, acceleration) over ``dt`` s and its process noise (3, 3)
+    for a unit jerk density (Bar-Shalom, Li & Kirubarajan 2001, Estimation with Applications to
+    Tracking and Navigation, section 6.2.3)."""
+    f = np.array([[1.0, dt, 0.5 * dt * dt], [0.0, 1.0, dt], [0.0, 0.0, 1.0]])
+    q = np.array([[dt**5 / 20, dt**4 / 8, dt**3 / 6], [dt**4 / 8, dt**3 / 3, dt**2 / 2],
+                  [dt**3 / 6, dt**2 / 2, dt]])
+    return f, q
+
+
+class _MotionModel:
+    """The steps of :func:`motion_smoothed`'s model between samples: ``x_i = F_i x_{i-1} + w_i``,
+    ``cov w_i = q Q_i + S_i`` with ``S_i`` freeing rate and acceleration at a strike inside the step."""
+
+    def __init__(self, time: np.ndarray, strikes):
+        strikes = np.sort(np.asarray(list(strikes), float))
+        free = np.diag([0.0, _FREE_RATE**2, _FREE_ACCELERATION**2])
+        n = len(time)
+        self.f = np.zeros((n, 3, 3))
+        self.q = np.zeros((n, 3, 3))
+        self.s = np.zeros((n, 3, 3))
+        for i in range(1, n):
+            a, b = float(time[i - 1]), float(time[i])
+            inside = strikes[(strikes > a) & (strikes <= b)]
+            if len(inside):  # to the strike, free the rate and acceleration, on to the sample
+                f1, q1 = _white_jerk(float(inside[0]) - a)
+                f2, q2 = _white_jerk(b - float(inside[0]))
+                self.f[i] = f2 @ f1
+                self.q[i] = f2 @ q1 @ f2.T + q2
+                self.s[i] = f2 @ free @ f2.T
+            else:
+                self.f[i], self.q[i] = _white_jerk(b - a)
+        self.prior = np.diag([1.0, _FREE_RATE**2, _FREE_ACCELERATION**2])  # rad, rad/s, rad/s^2
+
+    def filter(self, values, sds, density: float):
+        """Kalman filter: predicted and filtered (means (n, 3), covariances (n, 3, 3)) and the log
+        likelihood of the samples after the first three (whose innovations the diffuse start sets)."""
+        n = len(values)
+        xp, pp = np.zeros((n, 3)), np.zeros((n, 3, 3))
+        xf, pf = np.zeros((n, 3)), np.zeros((n, 3, 3))
+        seen = np.isfinite(values)
+        x = np.array([values[np.argmax(seen)], 0.0, 0.0])
+        p = self.prior.copy()
+        loglik, used = 0.0, 0
+        for i in range(n):
+            if i > 0:
+                x = self.f[i] @ x
+                p = self.f[i] @ p @ self.f[i].T + density * self.q[i] + self.s[i]
+            xp[i], pp[i] = x, p
+            if seen[i]:
+                var = p[0, 0] + sds[i] ** 2
+                gain = p[:, 0] / var
+                innovation = values[i] - x[0]
+                if used >= 3:
+                    loglik -= 0.5 * (innovation**2 / var + math.log(2 * math.pi * var))
+                used += 1
+                x = x + gain * innovation
+                p = p - np.outer(gain, p[0])
+                p = 0.5 * (p + p.T)
+            xf[i], pf[i] = x, p
+        return xp, pp, xf, pf, loglik
+
+    def smooth(self, values, sds, density: float):
+        """Rauch-Tung-Striebel smoother (Rauch, Tung & Striebel 1965, AIAA J. 3:1445,
+        doi:10.2514/3.3166): the angle's posterior means and SDs (n,) given every sample."""
+        xp, pp, xs, ps, _ = self.filter(values, sds, density)
+        for i in range(len(values) - 2, -1, -1):
+            c = ps[i] @ self.f[i + 1].T @ np.linalg.inv(pp[i + 1])
+            xs[i] = xs[i] + c @ (xs[i + 1] - xp[i + 1])
+            ps[i] = ps[i] + c @ (ps[i + 1] - pp[i + 1]) @ c.T
+        return xs[:, 0], np.sqrt(np.maximum(ps[:, 0, 0], 0.0))
+
+
+def motion_smoothed(time, values, sds, strikes=(), *, density: float | None = None):
+    """An angle's samples combined with its continuity over time: each sample's posterior given
+    all of them under a smooth-motion model, with its SD.
+
+    The angle, its rate and its acceleration follow a white-jerk model (the jerk's spectral
+    density ``density``; Bar-Shalom et al. 2001, section 6.2.3) whose rate and acceleration are
+    free to jump at each heel strike (an impact: the angle is continuous, its rates are not,
+    model.md section 3). The samples are the per-frame estimates with their stated SDs; the
+    posterior is the Rauch-Tung-Striebel smoother's. Unless given, ``density`` is the one of
+    largest likelihood of the samples (a grid of powers of ten, then quarter decades), so the
+    model is as loose as the signal needs: the posterior SD then covers the model's misfit too.
+
+    Parameters
+    ----------
+    time : array_like, shape (n,)
+        Sample times (s), increasing.
+    values, sds : array_like, shape (n,)
+        The angle (rad; NaN = no sample) and its SD (rad).
+    strikes : iterable of float
+        Heel-strike times (s), of either foot.
+    density : float, optional
+        Jerk spectral density (rad^2/s^5).
+
+    Returns
+    -------
+    values, sds : ndarray, shape (n,)
+        Posterior mean and SD (rad) at every time (in gaps too: callers keep gaps as gaps).
+    density : float
+        The density used (rad^2/s^5).
+    """
+    t = np.asarray(time, float)
+    y = np.asarray(values, float)
+    s = np.asarray(sds, float)
+    if not (t.shape == y.shape == s.shape and t.ndim == 1):
+        raise ValueError(f"time, values and sds must be 1-D of one length, got shapes {t.shape}, "
+                         f"{y.shape}, {s.shape}")
+    if np.any(np.diff(t) <= 0):
+        raise ValueError("time must increase strictly")
+    y = np.where(np.isfinite(s) & (s > 0), y, np.nan)
+    if np.sum(np.isfinite(y)) < 4:
+        raise ValueError("need at least 4 samples with a finite value and SD")
+    model = _MotionModel(t, strikes)
+    if density is None:
+        def loglik(log_q):
+            return model.filter(y, s, 10.0**log_q)[4]
+
+        coarse = max(_LOG_DENSITIES, key=loglik)
+        density = 10.0 ** max(coarse + _REFINE, key=loglik)
+    mean, sd = model.smooth(y, s, float(density))
+    return mean, sd, float(density)

@@ -1,0 +1,147 @@
+"""A leg seen through one of its flags (issue 14): clips by the project's renderer (noise level 1)
+in which one flag of a leg is painted over for stretches, as the near leg hides the far leg's
+flags when filmed from one side, tracked and compared with the renderer's truth.
+
+The stretches cycle every 12 frames: nothing hidden, the left (far) leg's lower flag hidden, the
+right (near) leg's upper flag hidden. The cover is a grey quadrilateral over the whole flag (its
+white margin too) wherever the flag is during the open shutter, painted before the sensor noise,
+so the tracker neither decodes nor recovers the flag. For each leg, the frames in which its flag
+is hidden give its angles' errors; the issue's targets: pitch and lean RMS <= 0.3 degree, steer
+<= 0.5, and the RMS of error over stated SD between 0.5 and 2.
+
+Each shipped walker the tracker is benchmarked on (benchmarks/TRACKING.md): compass-3d (flags
+60-90 px wide), the toy (45-55 px) and stable-toy (6.4 frames a step). Before the change (each
+frame's own joint fit only) the hidden-flag frames' pitch RMS was 0.18 (compass-3d), 0.23-0.28
+(toy) and 0.32-0.34 degree (stable-toy), against 0.04-0.16 with both flags.
+"""
+
+import subprocess
+
+import cv2
+import numpy as np
+import pytest
+from toywalk.model.parameters import load_params
+from toywalk.model.trajectory import read_trajectory
+from toywalk.tracking.angles import walker_angles
+from toywalk.tracking.camera import project
+from toywalk.tracking.markers import default_layout, marker_corners
+from toywalk.tracking.render import Filming, RenderOptions
+from toywalk.tracking.scene import default_camera_for
+from toywalk.tracking.track import track_video
+
+from ..conftest import DATA
+from .synthetic import TOYWALK
+
+SIGNALS = ("lean", "steer", "pitch_left", "pitch_right")
+STRETCH = 12  # frames: 0.2 s, a third to two steps of the walkers here
+HIDDEN = {"L": 1, "R": 2}  # the left leg's lower flag, the right leg's upper flag (default_layout)
+
+
+def _hidden(k: int) -> dict:
+    """Leg -> the id of its flag hidden in frame ``k`` (none, left, right in turn). The clip starts
+    with both flags seen: hidden from the first frame, compass-3d's and stable-toy's left leg was
+    not acquired at all (measured)."""
+    phase = (k // STRETCH) % 3
+    return {} if phase == 0 else ({"L": HIDDEN["L"]} if phase == 1 else {"R": HIDDEN["R"]})
+
+
+def _render_hidden(folder, params_path, steps: int, seed: int, duration: float):
+    """Simulate, render at level 1 with the flags of :func:`_hidden` painted over, track:
+    (TrackResult, true angles (n, 4), markers seen per leg {foot: (n,)}, hidden {foot: (n,) bool},
+    the camera)."""
+    r = subprocess.run([TOYWALK, "simulate", "--params", str(params_path), "--steps", str(steps),
+                        "--out", str(folder / "walk.csv")], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    params = load_params(params_path)
+    camera, layout = default_camera_for(params), default_layout(params)
+    film = Filming(read_trajectory(folder / "walk.csv"), params, camera, layout,
+                   RenderOptions.preset(1, duration=duration), seed)
+    markers = {m.id: m for m in layout.markers}
+    half = 0.5 * film.options.exposure / film.options.fps
+    scene, finish, current = film.scene, film.scene.finish, [0]
+
+    def cover(canvas):  # Filming.frame's lens step, then the cover, then its noise and flicker
+        image = finish(canvas)
+        t = float(film.times[current[0]])
+        for foot, i in _hidden(current[0]).items():
+            m = markers[i]
+            outline = [project(camera, marker_corners(m, 1.2 * m.margin),
+                               cv2.Rodrigues(scene.body_poses(film.motion.state(t + dt))[foot][0])[0],
+                               scene.body_poses(film.motion.state(t + dt))[foot][1])
+                       for dt in (-half, 0.0, half)]
+            hull = cv2.convexHull(np.round(np.concatenate(outline) * 16).astype(np.int32))
+            cv2.fillConvexPoly(image, hull, (90, 90, 90), cv2.LINE_AA, 4)
+        return image
+
+    scene.finish = cover
+    writer = cv2.VideoWriter(str(folder / "v.mp4"), cv2.VideoWriter_fourcc(*"mp4v"), film.options.fps,
+                             camera.size)
+    truth = []
+    for k in range(len(film)):
+        current[0] = k
+        writer.write(film.frame(k))
+        truth.append(film.truth(k)[0])
+    writer.release()
+    result, _ = track_video(folder / "v.mp4", camera, layout, one_marker_smoothing=True)
+    walker = result.poses["walker"]
+    seen = {f: np.array([0 if w is None else w.n_points.get(f, 0) // 4 for w in walker]) for f in "LR"}
+    hidden = {f: np.array([f in _hidden(k) for k in range(len(film))]) for f in "LR"}
+    return result, np.array(truth), seen, hidden, camera
+
+
+def _check(result, truth, seen, hidden, camera, walker: str) -> dict:
+    """The issue's targets on each leg's hidden-flag frames; returns each leg's pitch RMS there
+    (deg) from each frame's own joint fit alone, and as reported."""
+    r_ramp = cv2.Rodrigues(np.asarray(camera.ramp_pose[0], float).reshape(3, 1))[0]
+    out = {}
+    for foot, pitch in (("L", "pitch_left"), ("R", "pitch_right")):
+        mask = hidden[foot]
+        # the cover works: the leg is tracked through its other flag alone in these frames
+        # (a frame or two next to a strike may lose that one too, to blur)
+        assert np.all(seen[foot][mask] <= 1), walker
+        tracked = mask & (seen[foot] == 1)
+        assert tracked.sum() >= mask.sum() - 3, (walker, foot, mask.sum(), tracked.sum())
+        for name in ("lean", "steer", pitch):
+            err = np.degrees(result.raw[name] - truth[:, SIGNALS.index(name)])[tracked]
+            ok = np.isfinite(err)
+            # isolated inconsistent frames become gaps, a few next to the strikes (the toy's clip
+            # without a cover: 4 of 61 frames; test_track_rendered.py allows 6 of 60)
+            assert (~ok).sum() <= 3, (walker, foot, name)
+            rms = np.sqrt(np.mean(err[ok] ** 2))
+            # issue 14 (issue 4's targets): pitch and lean <= 0.3 degree, steer <= 0.5
+            assert rms <= (0.5 if name == "steer" else 0.3), (walker, foot, name, rms)
+            z = np.sqrt(np.mean((err[ok] / np.degrees(result.raw_sd[name][tracked][ok])) ** 2))
+            # issue 14: the SDs cover the errors, error over SD RMS within 0.5-2
+            assert 0.5 < z < 2.0, (walker, foot, name, z)
+            if name == pitch:
+                own = np.array([walker_angles(r_ramp, result.poses["walker"][k])[SIGNALS.index(name)]
+                                for k in np.flatnonzero(tracked)])
+                own_err = np.degrees(own - truth[tracked, SIGNALS.index(name)])[ok]
+                out[foot] = (float(np.sqrt(np.mean(own_err**2))), float(rms))
+    return out
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("walker", "steps", "seed", "duration"), [
+    ("compass-3d", 3, 2, 1.0),  # 61 frames, two strikes; the seeds of test_track_rendered.py
+    # 61 frames, two strikes. Its right leg's 12 hidden frames: pitch 0.045 degree RMS (0.49 from
+    # each frame's own fit), but error over SD 0.40: the smoothed SDs err large here
+    pytest.param("toy-sized", 3, 1, 1.0, marks=pytest.mark.xfail(
+        reason="issue 14 open: right-leg pitch error/SD 0.40 on 12 frames (bound 0.5)")),
+    # 61 frames, 9 strikes. One frame 0.35 frame from a strike has its own fit 2.7 degrees off
+    # with an SD of 0.57 (4.7 SDs); its neighbours, across the strike, cannot correct it: left
+    # pitch 0.42 degree RMS (0.62 from each frame's own fit)
+    pytest.param("stable-toy", 13, 2, 1.0, marks=pytest.mark.xfail(
+        reason="issue 14 open: a blurred frame at a strike, 4.7 SDs off, gives pitch 0.42 deg RMS")),
+])
+def test_one_flag_hidden_meets_the_targets(tmp_path, walker, steps, seed, duration):
+    result, truth, seen, hidden, camera = _render_hidden(tmp_path, DATA / "params" / f"{walker}.toml",
+                                                         steps, seed, duration)
+    pitch_rms = _check(result, truth, seen, hidden, camera, walker)
+    for foot, (own, reported) in pitch_rms.items():
+        # the leg's continuity helps: each frame's own fit alone does worse (measured on
+        # compass-3d: left 0.18 against 0.06-0.08, right 0.34 against 0.07-0.14 degree)
+        assert reported < own, (walker, foot, own, reported)
+    # the counts say how many frames rested on one flag (at least the hidden ones tracked)
+    for foot in "LR":
+        assert result.counts[f"one_marker_{foot}"] >= int(np.sum(hidden[foot] & (seen[foot] == 1)))
