@@ -72,7 +72,7 @@ from .measurement import (
 )
 
 __all__ = ["CONTACT_KEYS", "MODELS", "FitError", "FitResult", "PeriodicityTest", "fit", "fit_bounds",
-           "gait_period", "parameter_bounds", "periodicity_test", "score_tests"]
+           "gait_period", "parameter_bounds", "periodicity_test", "score_tests", "tied", "with_values"]
 
 #: The models of a walk :func:`fit` knows.
 MODELS = ("periodic", "transient")
@@ -260,13 +260,36 @@ def parameter_bounds(params: Params, name: str) -> tuple[float, float]:
     return low, high
 
 
+def tied(params: Params, free) -> dict[str, str]:
+    """Parameters that follow a free one, ``{follower: leader}``.
+
+    A spherical foot stays a sphere: when ``foot_radius`` is free and ``foot_lateral_radius`` is
+    not, and the walker's foot is a sphere (rho = r, the seed's point foot r = rho = 0 included),
+    the sideways radius moves with the fore-aft one. Freed alone it could only grow into a torus
+    with a sharp rim (rho fixed), which is not what a foot radius "held at the wrong value" means;
+    free ``foot_lateral_radius`` too to let the two part."""
+    free = list(free)
+    if ("foot_radius" in free and "foot_lateral_radius" not in free
+            and params.foot_lateral_radius == params.foot_radius):
+        return {"foot_lateral_radius": "foot_radius"}
+    return {}
+
+
+def with_values(params: Params, free, values: dict) -> Params:
+    """``params`` with the free parameters at ``values`` (and what follows them: :func:`tied`)."""
+    values = dict(values)
+    for follower, leader in tied(params, free).items():
+        values[follower] = values[leader]
+    return params.replace(**values)
+
+
 def fit_bounds(params: Params, free, name: str) -> tuple[float, float]:
     """The fit's bounds on a free parameter: its physical bounds (:func:`parameter_bounds`), and
-    a foot radius bounded by the other when only one of the two is free (model.md section 2: the
-    sideways radius never exceeds the fore-aft one; when both are free a constraint keeps them
-    in order)."""
+    a foot radius bounded by the other when only one of the two is free and the foot is not a
+    sphere (model.md section 2: the sideways radius never exceeds the fore-aft one; when both are
+    free a constraint keeps them in order; a sphere's radii move together, :func:`tied`)."""
     low, high = parameter_bounds(params, name)
-    if name == "foot_radius" and "foot_lateral_radius" not in free:
+    if name == "foot_radius" and "foot_lateral_radius" not in free and not tied(params, free):
         low = max(low, params.foot_lateral_radius)
     if name == "foot_lateral_radius" and "foot_radius" not in free:
         high = min(high, params.foot_radius)
@@ -565,6 +588,14 @@ class _Problem:
         p = ca.MX(ca.DM(self.p0))
         for j, k in enumerate(self.index):
             p[k] = self.p0[k] + self.scale[j] * delta[j]
+        self.tied = [(INPUT_NAMES.index(a), INPUT_NAMES.index(b)) for a, b in tied(params, free).items()]
+        for follower, leader in self.tied:
+            p[follower] = p[leader]
+        # d(model inputs)/d(theta): one per free parameter, and its followers (tied) move with it.
+        self.dp_dtheta = np.zeros((len(self.p0), n_f))
+        self.dp_dtheta[self.index, np.arange(n_f)] = 1.0
+        for follower, leader in self.tied:
+            self.dp_dtheta[follower, self.index.index(leader)] = 1.0
         inv_sd_all = ca.MX.sym("inv_sd", self.n_obs + 2 * pth.n)
         inv_sd, inv_sd_c = inv_sd_all[:self.n_obs], inv_sd_all[self.n_obs:]
         durations = ca.vertcat(*[w[prob.duration_index(j)] for j in range(prob.phases)])
@@ -663,6 +694,8 @@ class _Problem:
     def p_full(self, theta: np.ndarray) -> np.ndarray:
         p = self.p0.copy()
         p[self.index] = theta
+        for follower, leader in self.tied:
+            p[follower] = p[leader]
         return p
 
     def solve(self, x0: np.ndarray, sigma: np.ndarray, aligned_first: bool = True):
@@ -735,7 +768,7 @@ class _Problem:
             indep = g_w[:, self.start_free].toarray()
         dep = np.setdiff1d(np.arange(self.n_w), self.start_free)
         n_f, n_s = len(self.free), len(self.start_free)
-        rhs = np.hstack([g_p[:, self.index].toarray(), indep])
+        rhs = np.hstack([g_p @ self.dp_dtheta, indep])
         dw = np.zeros((self.n_w, n_f + n_s))
         if n_f + n_s:
             dw[dep] = -splu(g_w[:, dep].tocsc()).solve(rhs)
@@ -751,8 +784,8 @@ class _Problem:
             r_w, r_p, j_w, j_p = (_sparse(m) for m in jac)
             sums = _interval_sums(prob)
             d_lift = np.vstack([sums @ (r_w @ dw) + j_w @ dw, r_w @ dw])
-            d_lift[:, :n_f] += np.vstack([(sums @ r_p + j_p)[:, self.index].toarray(),
-                                          r_p[:, self.index].toarray()])
+            d_lift[:, :n_f] += np.vstack([(sums @ r_p + j_p) @ self.dp_dtheta,
+                                          r_p @ self.dp_dtheta])
             j_model += jr[:, self.lift_cols] @ d_lift / self.c_scale
         j_off = jr[:, self.n_w + n_f:self.n_w + n_f + n_o].toarray()
         j_origin = jr[:, self.n_w + n_f + n_o:self.n_w + n_f + n_o + n_c].toarray() / self.c_scale
@@ -870,7 +903,7 @@ class _Problem:
         whitened = self.whitened(x, sigma)
         success = bool(stats["success"])
         try:
-            fitted = self.params.replace(**estimates_only(estimates, self.free))
+            fitted = with_values(self.params, self.free, estimates_only(estimates, self.free))
             gait = self._gait(x, fitted, notes)
         except ParameterError as err:
             fitted, gait, success = self.params, {}, False

@@ -37,6 +37,7 @@ from toywalk.model.gait import GaitNotFound, solve_fixed_point
 from toywalk.model.parameters import ParameterError, Params
 from toywalk.model.walker import Walker
 
+from .fit import with_values
 from .measurement import Observations, components, offsets_design, path, step_counts
 
 __all__ = ["NO_GAIT", "OK", "OUTSIDE_PRIOR", "GaitCurves", "LogPosterior", "Reading", "model_angles"]
@@ -164,7 +165,8 @@ class LogPosterior:
     def gait(self, theta: np.ndarray, warm: bool = True):
         """The gait at ``theta`` (Newton from the nearest solved gait, else the start), or None."""
         try:
-            walker_params = self.params.replace(**dict(zip(self.free, map(float, theta), strict=True)))
+            walker_params = with_values(self.params, self.free,
+                                        dict(zip(self.free, map(float, theta), strict=True)))
         except ParameterError:
             return None, None
         walker = Walker(walker_params, planar=self.planar, period=self.period)

@@ -15,7 +15,7 @@ from toywalk.model.parameters import load_params
 from toywalk.model.simulate import simulate
 from toywalk.model.trajectory import TrajectoryTable
 from toywalk.model.walker import Walker
-from toywalk.sysid.fit import FitError, fit
+from toywalk.sysid.fit import FitError, fit, fit_bounds
 from toywalk.sysid.measurement import MeasurementError, observations, operator
 
 from ..conftest import DATA
@@ -232,14 +232,30 @@ def test_a_prior_on_the_slope_combines_with_the_data(toy):
 
 
 def test_foot_radii_stay_ordered():
-    """A spherical foot (compass-3d: rho = r): freeing the fore-aft radius alone keeps it at or
-    above the fixed sideways one (a bound, reported when the estimate sits on it); freeing both
-    keeps rho <= r (a constraint). Either way the fitted walker is valid, and a failed fit is
-    refused by the sampler with the reason."""
+    """A spherical foot (compass-3d: rho = r) stays a sphere when its radius alone is free: both
+    radii move together (sysid.fit.tied), the estimate recovers the truth, and the reduced
+    Jacobian through the tie agrees with re-solved differences. A torus foot's fore-aft radius
+    freed alone is bounded below by the fixed sideways one; freeing both keeps rho <= r (a
+    constraint). Either way the fitted walker is valid, and a failed fit is refused by the
+    sampler with the reason."""
     params = load_params(DATA / "params" / "compass-3d.toml")
     table, _ = _walk(params, 6, 0.003, 21)
-    one = fit(table, params, ["com_offset[2]", "foot_radius"], check_jacobian=False)
-    assert one.success and one.params.foot_radius >= params.foot_lateral_radius
+    start = params.replace(foot_radius=0.97 * params.foot_radius,
+                           foot_lateral_radius=0.97 * params.foot_radius)
+    one = fit(table, start, ["com_offset[2]", "foot_radius"])
+    assert one.success, one.status
+    assert one.params.foot_lateral_radius == one.params.foot_radius  # still a sphere
+    err = one.estimates["foot_radius"] - params.foot_radius
+    assert abs(err) < 3 * one.std["foot_radius"], (err, one.std["foot_radius"])
+    # Central differences re-solve the BVP with the tie applied (p_full): both exact to the
+    # BVP's tolerance (1e-10), differences at 1e-5 relative steps, as in the recovery test.
+    assert max(one.jacobian_check.values()) < 1e-6
+    # Bounds: a torus's fore-aft radius freed alone stays above its sideways one; a sphere's
+    # has only its physical bound (its sideways radius follows it).
+    torus = params.replace(foot_lateral_radius=0.9 * params.foot_radius)
+    assert fit_bounds(torus, ["foot_radius"], "foot_radius")[0] == torus.foot_lateral_radius
+    assert fit_bounds(params, ["foot_radius"], "foot_radius")[0] == 0.0
+    assert fit_bounds(params, ["foot_radius", "foot_lateral_radius"], "foot_radius")[0] == 0.0
     both = fit(table, params, ["foot_radius", "foot_lateral_radius"], check_jacobian=False)
     assert both.success and both.params.foot_lateral_radius <= both.params.foot_radius
     from toywalk.sysid.sample import SampleError, posterior_from_fit
