@@ -18,7 +18,7 @@ demo: $(STAMP)
 # Two processes, one per core (the tests are single-threaded CasADi and NumPy work); a file's
 # tests stay in one process so that its module fixtures are built once.
 test: $(STAMP)
-	$(PY) -m pytest -q -n 2 --dist loadfile
+	$(PY) -m pytest -q -n 2 --dist loadfile --durations=25
 
 bench: $(STAMP)
 	$(PY) benchmarks/run_all.py

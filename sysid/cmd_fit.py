@@ -122,9 +122,11 @@ def cmd_fit(args) -> int:
     if not result.success:
         import sys
 
+        hint = (" (a model far from the walk may converge aligned on the measured heel strikes: "
+                "--strikes measured)" if args.strikes == "model" else "")
         print(f"toywalk fit: the fit did not succeed ({result.status} after {result.iterations} "
               f"iterations): {out} records the attempt and its warnings; its estimates are not a "
-              "usable optimum", file=sys.stderr)
+              f"usable optimum{hint}", file=sys.stderr)
         return 1
     return 0
 

@@ -45,7 +45,9 @@ def test_fit_that_does_not_converge(walk, tmp_path, capfd, monkeypatch):
     assert outcome.code == 1
     assert outcome.err_lines == [f"toywalk fit: the fit did not succeed (Maximum_Iterations_Exceeded "
                                  f"after 1 iterations): {out} records the attempt and its warnings; "
-                                 "its estimates are not a usable optimum"], outcome.err
+                                 "its estimates are not a usable optimum (a model far from the walk "
+                                 "may converge aligned on the measured heel strikes: --strikes "
+                                 "measured)"], outcome.err
     assert outcome.out.strip().splitlines()[-1] == f"Maximum_Iterations_Exceeded in 1 iterations -> {out}"
     report = json.loads(out.read_text())
     assert report["success"] is False and report["status"] == "Maximum_Iterations_Exceeded"
