@@ -72,7 +72,8 @@ from .measurement import (
 )
 
 __all__ = ["CONTACT_KEYS", "MODELS", "FitError", "FitResult", "PeriodicityTest", "fit", "fit_bounds",
-           "gait_period", "parameter_bounds", "periodicity_test", "score_tests", "tied", "with_values"]
+           "gait_period", "parameter_bounds", "periodicity_test", "score_statistics", "score_tests", "tied",
+           "with_values"]
 
 #: The models of a walk :func:`fit` knows.
 MODELS = ("periodic", "transient")
@@ -1009,20 +1010,35 @@ def score_tests(table: TrajectoryTable, result: FitResult, names) -> dict:
     x = _continued(problem, w0, result)
     jac = problem.jacobian(x, result.sigma)
     r = problem.whitened(x, result.sigma)
-    out = {}
     held = [free.index(n) for n in names]
-    for name, col in zip(names, held, strict=True):
+    return dict(zip(names, score_statistics(jac, r, held), strict=True))
+
+
+def score_statistics(jac: np.ndarray, r: np.ndarray, held) -> list[dict]:
+    """Rao's score statistic of each held column of ``jac`` (shape (n_residuals, n_unknowns)) at
+    the whitened residuals ``r``, the other columns being the fitted unknowns
+    (:func:`score_tests`): per held column ``z``, ``step`` and ``se``. By the Frisch-Waugh-Lovell
+    theorem ``step`` is the coefficient of that column in the least-squares regression of ``-r``
+    on it and the fitted columns together, ``se`` its standard error."""
+    held = list(held)
+    out = []
+    # The fitted unknowns' columns are the same for every held one: one orthonormal basis of
+    # their span (SVD, rank-revealing like a least-squares solve) serves them all.
+    others = np.delete(jac, held, axis=1)
+    u, sv, _ = np.linalg.svd(others, full_matrices=False)
+    basis = u[:, sv > sv[0] * max(others.shape) * np.finfo(float).eps] if len(sv) else u
+    for col in held:
         j = jac[:, col]
-        others = np.delete(jac, held, axis=1)
-        coef, *_ = np.linalg.lstsq(others, j, rcond=None)
-        perp = j - others @ coef
+        perp = j - basis @ (basis.T @ j)
         norm2 = float(perp @ perp)
-        if norm2 <= 1e-300:
-            out[name] = {"z": 0.0, "step": 0.0, "se": math.inf}
+        # Nothing left to test when what the fitted unknowns cannot mimic is below 1e-8 of the
+        # column (the columns are exact to the BVP's 1e-10): round-off, not information.
+        if norm2 <= 1e-16 * float(j @ j) or norm2 <= 1e-300:
+            out.append({"z": 0.0, "step": 0.0, "se": math.inf})
             continue
         step = -float(perp @ r) / norm2
         se = 1.0 / math.sqrt(norm2)
-        out[name] = {"z": step / se, "step": step, "se": se}
+        out.append({"z": step / se, "step": step, "se": se})
     return out
 
 

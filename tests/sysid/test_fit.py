@@ -15,7 +15,7 @@ from toywalk.model.parameters import load_params
 from toywalk.model.simulate import simulate
 from toywalk.model.trajectory import TrajectoryTable
 from toywalk.model.walker import Walker
-from toywalk.sysid.fit import FitError, fit, fit_bounds
+from toywalk.sysid.fit import FitError, fit, fit_bounds, score_statistics
 from toywalk.sysid.measurement import MeasurementError, observations, operator
 
 from ..conftest import DATA
@@ -263,3 +263,27 @@ def test_foot_radii_stay_ordered():
     failed = dict(one.to_json(), success=False, gait={}, warnings=["made up for the test"])
     with pytest.raises(SampleError, match="did not succeed"):
         posterior_from_fit(failed, table)
+
+
+def test_score_statistics_are_the_joint_regressions_coefficients():
+    """Rao's score step of a held column, projected off the fitted ones, against the slow obvious
+    way (Frisch-Waugh-Lovell): regress -r on the fitted columns and that one together and read its
+    coefficient and standard error (unit noise). Random, correlated columns; one held column a
+    combination of the fitted ones (nothing left to test: z = 0, se infinite)."""
+    rng = np.random.default_rng(5)
+    jac = rng.normal(size=(200, 6))
+    jac[:, 4] += 0.9 * jac[:, 0]  # correlated with a fitted column
+    jac[:, 5] = jac[:, 1] - 2.0 * jac[:, 2]  # nothing beyond the fitted columns
+    r = rng.normal(size=200) + 0.3 * jac[:, 4] + 0.5 * jac[:, 0]  # and along a fitted column
+    got = score_statistics(jac, r, [3, 4, 5])
+    for k, col in enumerate((3, 4)):
+        design = np.column_stack([jac[:, :3], jac[:, col]])
+        coef, *_ = np.linalg.lstsq(design, -r, rcond=None)
+        cov = np.linalg.inv(design.T @ design)
+        # two exact computations of the same numbers: agreement to rounding (1e-10 relative)
+        assert_allclose(got[k]["step"], coef[-1], rtol=1e-10)
+        assert_allclose(got[k]["se"], math.sqrt(cov[-1, -1]), rtol=1e-10)
+    assert got[2]["z"] == 0.0 and got[2]["se"] == math.inf
+    # The check can fail: without the projection (the raw column) the step is a different number.
+    raw = -float(jac[:, 4] @ r) / float(jac[:, 4] @ jac[:, 4])
+    assert abs(raw - got[1]["step"]) > 0.1 * abs(got[1]["step"])
