@@ -455,7 +455,8 @@ def print_table(res: dict) -> None:
     row("max |J - J(128/unit)|", lambda n: sci_cell(jac[n]["jacobian_max_abs_diff_vs_reference"]))
     print("4. vs SciPy solve_ivp DOP853 (rtol=atol=1e-12) + event + collide + central FD (1e-6)")
     b = res["baseline"]
-    for kind, label in (("vm", "uncompiled rhs"), ("compiled", "compiled rhs")):
+    for kind, label in (("compiled", "compiled rhs (the fair one: the headline)"),
+                        ("vm", "uncompiled rhs (slow to call: a footnote)")):
         base = {n: b[n][f"baseline_{kind}_rhs"] for n in names}
         print(f"   baseline, {label}")
         row("  step map time (median)", lambda n, base=base: time_cell(base[n]["step_map"]))
@@ -491,7 +492,7 @@ def print_table(res: dict) -> None:
     row("step map", lambda n: f"{eo[n]['step_map']['cost_ratio_median']:>21.2f}x")
     row("step map + Jacobian", lambda n: f"{eo[n]['step_map_and_jacobian']['cost_ratio_median']:>21.2f}x")
     row("max |J_effects - J_seed|", lambda n: sci_cell(eo[n]["jacobian_max_abs_diff"]))
-    print("aims (>= 30x faster step map + Jacobian than the uncompiled baseline; "
+    print("aims (>= 30x faster step map + Jacobian than the baseline with the compiled rhs; "
           "eigenvalues >= 100x more accurate):")
     for k, v in res["aims"].items():
         print(f"   {k}: {v}")
@@ -538,13 +539,19 @@ def main() -> dict:
     res["effects_overhead"] = case_effects_overhead(walkers)
     pl = res["baseline"]["planar_simplest"]["baseline_vm_rhs"]
     d3 = res["baseline"]["walker_3d"]["baseline_vm_rhs"]
+    # The headline speed is against the fair baseline: SciPy's integrator calling our compiled
+    # right-hand side, as fast a call as a hand-written NumPy one. The uncompiled one is slow to
+    # call, so a ratio against it credits the method with the cost of the call (a footnote).
+    fair = {n: res["baseline"][n]["baseline_compiled_rhs"]["speedup_step_map_and_jacobian"]["ratio_median"]
+            for n in ("planar_simplest", "walker_3d")}
     res["aims"] = {
-        "speedup_step_map_and_jacobian_planar": round(
+        "speedup_step_map_and_jacobian_planar": round(fair["planar_simplest"], 1),
+        "speedup_step_map_and_jacobian_3d": round(fair["walker_3d"], 1),
+        "speed_aim_30x_met": bool(min(fair.values()) >= 30),
+        "footnote_speedup_vs_uncompiled_rhs_planar": round(
             pl["speedup_step_map_and_jacobian"]["ratio_median"], 1),
-        "speedup_step_map_and_jacobian_3d": round(
+        "footnote_speedup_vs_uncompiled_rhs_3d": round(
             d3["speedup_step_map_and_jacobian"]["ratio_median"], 1),
-        "speed_aim_30x_met": bool(min(pl["speedup_step_map_and_jacobian"]["ratio_median"],
-                                      d3["speedup_step_map_and_jacobian"]["ratio_median"]) >= 30),
         "eigenvalue_accuracy_ratio_vs_published_planar": round(pl["accuracy_ratio_vs_ours"], 1),
         "accuracy_aim_100x_met_vs_published_planar": bool(pl["accuracy_ratio_vs_ours"] >= 100),
         "eigenvalue_accuracy_ratio_vs_reference_128_planar": round(

@@ -76,6 +76,13 @@ class FrameSource:
     ----------
     path : str or Path
         The video file.
+    decoder_threads : int, optional
+        Threads FFmpeg may decode with (>= 1). None (the default) leaves the choice to OpenCV's
+        FFmpeg back end, which uses as many as the machine has cores; a number opens the file with
+        that back end and ``CAP_PROP_N_THREADS`` (1: decoding stays on the calling thread, for
+        timing a single-threaded pipeline). Only FFmpeg's decoder threads: OpenCV's own are set by
+        ``cv2.setNumThreads``. (The ``OPENCV_FFMPEG_CAPTURE_OPTIONS`` variable's ``threads;1``
+        does not reach the decoder: checked with opencv-python-headless 5.0.)
 
     Attributes
     ----------
@@ -92,19 +99,36 @@ class FrameSource:
         Wall-clock time spent decoding (s).
     timestamp_policy : str or None
         A key of :data:`TIMESTAMP_POLICIES`, set once the first two frames are read.
+    decoder_threads : int or None
+        The decoder threads asked for (None: the back end's choice).
     """
 
-    def __init__(self, path: str | Path):
+    def __init__(self, path: str | Path, *, decoder_threads: int | None = None):
         self.path = Path(path)
         if not self.path.exists():
             raise TrackError(f"video file not found: {self.path}")
         if not self.path.is_file():
             raise TrackError(f"not a video file: {self.path}")
+        if decoder_threads is not None and (isinstance(decoder_threads, bool)
+                                            or not isinstance(decoder_threads, (int, np.integer))
+                                            or decoder_threads < 1):
+            raise ValueError(f"decoder_threads must be None or an integer >= 1, got {decoder_threads!r}")
+        self.decoder_threads = None if decoder_threads is None else int(decoder_threads)
         _check_container(self.path)
-        self._cap = cv2.VideoCapture(str(self.path))
+        if self.decoder_threads is None:
+            self._cap = cv2.VideoCapture(str(self.path))
+        else:
+            self._cap = cv2.VideoCapture(str(self.path), cv2.CAP_FFMPEG,
+                                         [cv2.CAP_PROP_N_THREADS, self.decoder_threads])
         if not self._cap.isOpened():
             raise TrackError(f"cannot open video {self.path}: not a readable video file (corrupt or "
                              "truncated?)")
+        if self.decoder_threads is not None:
+            got = int(self._cap.get(cv2.CAP_PROP_N_THREADS))
+            if got != self.decoder_threads:
+                self._cap.release()
+                raise TrackError(f"{self.path}: asked FFmpeg for {self.decoder_threads} decoder "
+                                 f"thread(s), the back end reports {got}")
         self.declared_frames = int(self._cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
         self.width = int(self._cap.get(cv2.CAP_PROP_FRAME_WIDTH))
         self.height = int(self._cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
@@ -192,13 +216,15 @@ def _check_container(path: Path) -> None:
                          f"an {kind[0]} header): a mislabelled file, or a video cut at its start")
 
 
-def open_video(path: str | Path) -> FrameSource:
+def open_video(path: str | Path, *, decoder_threads: int | None = None) -> FrameSource:
     """A :class:`FrameSource` for ``path``.
 
     Parameters
     ----------
     path : str or Path
         The video file.
+    decoder_threads : int, optional
+        As in :class:`FrameSource` (None: the back end's choice).
 
     Returns
     -------
@@ -208,5 +234,7 @@ def open_video(path: str | Path) -> FrameSource:
     ------
     TrackError
         If the file is missing, not the container its suffix names, or cannot be opened.
+    ValueError
+        If ``decoder_threads`` is not None or an integer >= 1.
     """
-    return FrameSource(path)
+    return FrameSource(path, decoder_threads=decoder_threads)

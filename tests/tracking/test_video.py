@@ -2,6 +2,8 @@
 timestamp policy recorded, unusable times refused; and the test helper that gives an MP4 file
 uneven frame times (mp4times.py), checked by OpenCV's reading of the files it writes."""
 
+import os
+
 import cv2
 import numpy as np
 import pytest
@@ -131,3 +133,50 @@ def test_timestamp_summary():
     assert timestamp_summary("given", [0.0])["frame_interval_s"] is None
     with pytest.raises(ValueError, match="policy must be one of"):
         timestamp_summary("guessed", [0.0, 1.0])
+
+
+def _threads_that_ran(before: dict) -> int:
+    """Threads of this process that used CPU time since ``before`` (tid -> utime + stime ticks)."""
+    return sum(1 for tid, ticks in _thread_ticks().items() if ticks > before.get(tid, -1))
+
+
+def _thread_ticks() -> dict:
+    out = {}
+    for tid in os.listdir("/proc/self/task"):
+        try:
+            with open(f"/proc/self/task/{tid}/stat") as fh:
+                fields = fh.read().rsplit(")", 1)[1].split()
+        except OSError:  # the thread ended
+            continue
+        out[tid] = int(fields[11]) + int(fields[12])  # utime, stime (proc(5), from field 3 on)
+    return out
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self/task"), reason="counts threads in Linux's /proc")
+def test_decoder_threads_pinned_to_one(tmp_path):
+    """decoder_threads=1: the same frames and times as the back end's default, decoded with no
+    thread of FFmpeg's own (no thread other than the caller's starts during the decoding)."""
+    path = tmp_path / "v.mp4"
+    _write(path, 40)
+    default = list(FrameSource(path))
+    before_tasks = set(os.listdir("/proc/self/task"))
+    source = FrameSource(path, decoder_threads=1)
+    assert source.decoder_threads == 1
+    before = _thread_ticks()
+    frames = []
+    for frame in source:
+        frames.append(frame)
+        if len(frames) == 20:  # mid-file: FFmpeg's frame threads would be running now
+            assert set(os.listdir("/proc/self/task")) <= before_tasks
+    assert _threads_that_ran(before) <= 1  # the caller's (0 if decoding took < 1 tick)
+    assert [t for t, _ in frames] == [t for t, _ in default]
+    for (_, image), (_, ref) in zip(frames, default, strict=True):
+        np.testing.assert_array_equal(image, ref)
+
+
+@pytest.mark.parametrize("bad", [0, -1, 1.5, True, "1"])
+def test_decoder_threads_refused(tmp_path, bad):
+    path = tmp_path / "v.mp4"
+    _write(path, 2)
+    with pytest.raises(ValueError, match="decoder_threads must be None or an integer >= 1"):
+        FrameSource(path, decoder_threads=bad)
