@@ -163,10 +163,13 @@ def test_demo_diagnosis_is_the_documented_one(demo):
     assert_documented(features["steer_range"], -9.1, 0.1, "steer range (SE)")
     assert_documented(-features["swing_pitch_range_right_minus_left"], 7.6, 0.1, "swing pitch (SE)")
     assert_documented(features["stance_pitch_range_right_minus_left"], 6.9, 0.1, "stance pitch (SE)")
-    # screening: asymmetry z = +32.2, cross_slope +28.5, slope -23.6
+    # screening: asymmetry z = +32.2, cross_slope +28, slope -23.6
     score = {row["effect"]: row["score_z"] for row in d["ranking"]}
     assert_documented(score["effects.asymmetry"], 32.2, 0.1, "asymmetry score z")
-    assert_documented(score["effects.cross_slope"], 28.5, 0.1, "cross_slope score z")
+    # The cross slope's column is mostly a lean offset; the remainder the fit cannot mimic is
+    # settled only to about 0.1 % (28.45 projected with an SVD basis, 28.48 with a least-squares
+    # solve): quoted to the unit
+    assert_documented(score["effects.cross_slope"], 28, 1, "cross_slope score z")
     assert_documented(score["slope"], -23.6, 0.1, "slope score z")
     # named: asymmetry 0.00501, 95 % [0.00484, 0.00518]
     row = next(row for row in d["ranking"] if row["effect"] == "effects.asymmetry")
