@@ -40,6 +40,8 @@ import dataclasses
 import json
 import math
 import os
+import shutil
+import tempfile
 import time as _time
 from pathlib import Path
 
@@ -53,7 +55,8 @@ from .markers import MarkerLayout, default_layout
 from .scene import CameraPath, Scene, WalkerState, default_view
 
 __all__ = ["BLUR_STEP_PX", "NOISE_LEVELS", "Filming", "Motion", "RenderError", "RenderOptions",
-           "RenderResult", "default_filming", "render", "output_paths"]
+           "RenderResult", "default_filming", "draw_occluder", "occluder_schedule", "output_paths",
+           "params_record", "render", "shoot_times", "video_target", "write_shoot"]
 
 _CODECS = {".mp4": "mp4v", ".avi": "MJPG"}
 
@@ -335,7 +338,7 @@ def _integrate_contact(params, ang: np.ndarray, stance: np.ndarray) -> np.ndarra
 
 # --- camera imperfections -------------------------------------------------------------------------
 
-def _occluders(n_frames: int, fraction: float, width: int, height: int, fps: float, rng) -> list:
+def occluder_schedule(n_frames: int, fraction: float, width: int, height: int, fps: float, rng) -> list:
     """Occluder events: (first frame, n frames, kind, parameters), covering about ``fraction`` of
     the frames; a dark bar sweeping across (an arm, a pole) or a blurred blob (a finger on the lens)."""
     events = []
@@ -367,7 +370,7 @@ def _occluders(n_frames: int, fraction: float, width: int, height: int, fps: flo
     return events
 
 
-def _draw_occluder(img: np.ndarray, event, k: int) -> None:
+def draw_occluder(img: np.ndarray, event, k: int) -> None:
     first, length, p = event
     s = (k - first) / max(1, length - 1)
     h, w = img.shape[:2]
@@ -388,7 +391,7 @@ def _draw_occluder(img: np.ndarray, event, k: int) -> None:
 
 # --- the renderer ---------------------------------------------------------------------------------
 
-def _frame_times(motion: Motion, options: RenderOptions) -> np.ndarray:
+def shoot_times(motion: Motion, options: RenderOptions) -> np.ndarray:
     t_first, t_last = motion.span
     if options.frame_times is not None:
         times = np.array(options.frame_times)
@@ -436,7 +439,7 @@ class Filming:
         self.options, self.path = options, path
         self.rng = np.random.default_rng(rng)
         self.motion = Motion(table, params)
-        self.times = _frame_times(self.motion, options)
+        self.times = shoot_times(self.motion, options)
         if path is not None:  # the scene starts where the path does
             camera = dataclasses.replace(camera, ramp_pose=path.pose(float(self.times[0])))
         self.camera = camera
@@ -444,7 +447,7 @@ class Filming:
         n = len(self.times)
         self.gains = (1.0 + options.flicker * self.rng.standard_normal(n) if options.flicker > 0
                       else np.ones(n))
-        self.occluders = _occluders(n, options.occlusion, camera.width, camera.height, options.fps,
+        self.occluders = occluder_schedule(n, options.occlusion, camera.width, camera.height, options.fps,
                                     self.rng)
         self.blur = options.blur_subframes > 1 and options.exposure > 0
         self.subframes = np.zeros(n, dtype=int)  # renders averaged in each frame drawn (0: not yet)
@@ -474,7 +477,7 @@ class Filming:
         frame = scene.finish(canvas)
         for ev in self.occluders:
             if ev[0] <= k < ev[0] + ev[1]:
-                _draw_occluder(frame, ev, k)
+                draw_occluder(frame, ev, k)
         gain = float(self.gains[k])
         if options.noise_sd > 0:
             # OpenCV's generator (4x faster than NumPy's here), seeded from ``rng`` every frame
@@ -558,10 +561,19 @@ def render(table, params, camera: Camera, layout: MarkerLayout, options: RenderO
     -------
     RenderResult
     """
-    from toywalk.model.trajectory import TrajectoryTable, write_trajectory
-
     t_start = _time.perf_counter()
     options = RenderOptions.preset(1) if options is None else options
+    paths, codec = video_target(out_path, options)
+    seed = rng if isinstance(rng, (int, np.integer)) or rng is None else "generator"
+    film = Filming(table, params, camera, layout, options, rng, path)
+    write_shoot(film, table, params, layout, paths, codec=codec, lens=film.camera, source=source, seed=seed,
+                progress=progress)
+    return RenderResult(paths=paths, frame_times=film.times, seconds=_time.perf_counter() - t_start)
+
+
+def video_target(out_path: str | Path, options: RenderOptions) -> tuple[dict, str]:
+    """The files a render writes (:func:`output_paths`) and the video's codec; refuses a video
+    that is not ``.mp4`` or ``.avi`` and a folder that does not exist."""
     paths = output_paths(out_path)
     video = paths["video"]
     suffix = video.suffix.lower()
@@ -569,31 +581,56 @@ def render(table, params, camera: Camera, layout: MarkerLayout, options: RenderO
         raise RenderError(f"the video must be a .mp4 or .avi file, got {video.name}")
     if not video.parent.is_dir():
         raise RenderError(f"output folder does not exist: {video.parent}")
-    seed = rng if isinstance(rng, (int, np.integer)) or rng is None else "generator"
-    codec = options.codec or _CODECS[suffix]
-    film = Filming(table, params, camera, layout, options, rng, path)
-    motion, times, gains, occluders = film.motion, film.times, film.gains, film.occluders
-    n = len(times)
+    return paths, options.codec or _CODECS[suffix]
 
-    tag = f".{video.stem}.{os.getpid()}.tmp"
-    tmp = {"video": video.with_name(tag + suffix), "truth": video.with_name(tag + ".truth.csv"),
-           "metadata": video.with_name(tag + ".json"), "camera": video.with_name(tag + ".camera.json"),
-           "markers": video.with_name(tag + ".markers.json")}
-    tmp_truth_extra = [video.with_name(tag + ".truth.events.csv")]
-    final_truth_extra = [paths["truth"].with_name(paths["truth"].stem + ".events.csv")]
-    writer = None
+
+def write_shoot(shoot, table, params, layout: MarkerLayout, paths: dict, *, codec: str, lens: Camera,
+                source=None, seed=None, renderer: dict | None = None, progress=None) -> None:
+    """Draw every frame of a prepared shoot into ``paths["video"]`` and write its truth, the truth's
+    metadata, the lens and the markers beside it: all or nothing (staged in a hidden folder beside
+    the video and moved into place last; a failure removes what was already moved).
+
+    Parameters
+    ----------
+    shoot : Filming or toywalk.tracking.render_mujoco's shoot
+        With ``motion, options, path, times, gains, occluders, subframes`` and ``frame(k)``,
+        ``truth(k)`` (frames drawn in order).
+    table, params, layout
+        As for :func:`render`.
+    paths : dict
+        :func:`output_paths`.
+    codec : str
+        FourCC of the video writer.
+    lens : Camera
+        The camera filmed with (for a moving camera, at the first frame: ``V.camera.json`` then
+        has no ramp pose).
+    source, seed
+        For the metadata.
+    renderer : dict, optional
+        Which renderer drew the frames, for the metadata (none: this module's).
+    progress : callable, optional
+        Called as ``progress(k, n_frames)`` after each frame.
+    """
+    from toywalk.model.trajectory import TrajectoryTable, write_trajectory
+
+    video, options, path, motion, times = paths["video"], shoot.options, shoot.path, shoot.motion, shoot.times
+    n = len(times)
+    stage = Path(tempfile.mkdtemp(prefix=f".{video.stem}.", dir=video.parent))
+    staged = {key: stage / p.name for key, p in paths.items()}
+    truth_events = paths["truth"].with_name(paths["truth"].stem + ".events.csv")
     done = []  # final files already in place (removed again if a later step fails)
+    writer = None
     try:
-        writer = cv2.VideoWriter(str(tmp["video"]), cv2.VideoWriter_fourcc(*codec), float(options.fps),
-                                 (camera.width, camera.height))
+        writer = cv2.VideoWriter(str(staged["video"]), cv2.VideoWriter_fourcc(*codec), float(options.fps),
+                                 (lens.width, lens.height))
         if not writer.isOpened():
             raise RenderError(f"cannot open a {codec} video writer for {video.name}")
         truth = np.empty((n, 6))
         stances = []
         poses = []  # a moving camera's ramp pose in each frame (rvec, tvec), at the frame's time
         for k in range(n):
-            writer.write(film.frame(k))
-            truth[k, :4], stance, truth[k, 4:] = film.truth(k)
+            writer.write(shoot.frame(k))
+            truth[k, :4], stance, truth[k, 4:] = shoot.truth(k)
             stances.append(stance)
             if path is not None:
                 poses.append(np.concatenate(path.pose(float(times[k]))).tolist())
@@ -601,10 +638,10 @@ def render(table, params, camera: Camera, layout: MarkerLayout, options: RenderO
                 progress(k + 1, n)
         writer.release()
         writer = None
-        check = cv2.VideoCapture(str(tmp["video"]))
+        check = cv2.VideoCapture(str(staged["video"]))
         ok = check.isOpened()
         check.release()
-        if not ok or tmp["video"].stat().st_size == 0:
+        if not ok or staged["video"].stat().st_size == 0:
             raise RenderError(f"the {codec} video writer produced no readable file")
         events = [{"time": te, "foot": f, "x": math.nan, "y": math.nan} for te, f in motion.events
                   if times[0] <= te <= times[-1]]
@@ -612,6 +649,7 @@ def render(table, params, camera: Camera, layout: MarkerLayout, options: RenderO
             for e in events:
                 if abs(e["time"] - float(ev["time"])) < 1e-12:
                     e["x"], e["y"] = float(ev.get("x", math.nan)), float(ev.get("y", math.nan))
+        blur = options.blur_subframes > 1 and options.exposure > 0
         meta = {
             "units": {"time": "s", "angles": "rad", "contact": "m"},
             "source": {"kind": "render truth", "video": video.name, "trajectory": source,
@@ -622,18 +660,18 @@ def render(table, params, camera: Camera, layout: MarkerLayout, options: RenderO
                             else "frame k shows the trajectory at frame_times[k] (given; the video file "
                                  "is stamped t0 + k / fps)")
                            + "; with motion blur the shutter is open over t +- exposure / (2 fps)"),
-            "motion_blur": {"renders_per_frame": film.subframes.tolist(), "max_step_px": BLUR_STEP_PX}
-            if film.blur else None,
+            "motion_blur": {"renders_per_frame": shoot.subframes.tolist(), "max_step_px": BLUR_STEP_PX}
+            if blur else None,
             "contact": "the stance foot's lowest point, from the drawn geometry",
             "video": video.name,
             "truth": paths["truth"].name,
-            "size": [camera.width, camera.height],
+            "size": [lens.width, lens.height],
             "fps": options.fps,
             "frames": n,
             "codec": codec,
             "frame_times": times.tolist(),
-            "params": _params_dict(params),
-            "camera": film.camera.to_dict(),
+            "params": params_record(params),
+            "camera": lens.to_dict(),
             "camera_path": None if path is None else {
                 "kind": "moves without turning (tracking.scene.CameraPath)",
                 "frames": "ramp pose (rvec, tvec) in each frame, at the frame's time",
@@ -641,32 +679,35 @@ def render(table, params, camera: Camera, layout: MarkerLayout, options: RenderO
             "markers": layout.to_dict(),
             "options": dataclasses.asdict(options),
             "seed": int(seed) if isinstance(seed, np.integer) else seed,
-            "occluders": [{"first_frame": a, "frames": b, **p} for a, b, p in occluders],
-            "gains": gains.tolist(),
+            "occluders": [{"first_frame": a, "frames": b, **p} for a, b, p in shoot.occluders],
+            "gains": shoot.gains.tolist(),
             "software": _version(),
         }
+        if renderer is not None:
+            meta["renderer"] = renderer
         signals = {"lean": truth[:, 0], "steer": truth[:, 1], "pitch_left": truth[:, 2],
                    "pitch_right": truth[:, 3], "contact_x": truth[:, 4], "contact_y": truth[:, 5]}
         # the truth's metadata file NAME.json (model.trajectory's naming) is V.json itself
-        written = write_trajectory(TrajectoryTable(times, signals, stances, events, meta), tmp["truth"])
-        if written[2] != tmp["metadata"]:
+        written = write_trajectory(TrajectoryTable(times, signals, stances, events, meta), staged["truth"])
+        if written[2] != staged["metadata"]:
             raise RuntimeError(f"unexpected trajectory metadata name {written[2]}")
         # a moving camera's lens only: its ramp pose changes from frame to frame
-        lens = film.camera if path is None else dataclasses.replace(film.camera, ramp_pose=None)
-        tmp["camera"].write_text(json.dumps(lens.to_dict(), indent=2) + "\n")
-        tmp["markers"].write_text(json.dumps(layout.to_dict(), indent=2) + "\n")
-        moves = [*zip(tmp_truth_extra, final_truth_extra, strict=True),
-                 *((tmp[key], paths[key]) for key in ("truth", "metadata", "camera", "markers", "video"))]
+        lens_file = lens if path is None else dataclasses.replace(lens, ramp_pose=None)
+        staged["camera"].write_text(json.dumps(lens_file.to_dict(), indent=2) + "\n")
+        staged["markers"].write_text(json.dumps(layout.to_dict(), indent=2) + "\n")
+        moves = [(written[1], truth_events),
+                 *((staged[key], paths[key]) for key in ("truth", "metadata", "camera", "markers", "video"))]
         for a, b in moves:
             os.replace(a, b)
             done.append(b)
     except BaseException:
         if writer is not None:
             writer.release()
-        for p in [*tmp.values(), *tmp_truth_extra, *done]:
+        for p in done:
             p.unlink(missing_ok=True)
         raise
-    return RenderResult(paths=paths, frame_times=times, seconds=_time.perf_counter() - t_start)
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
 
 
 def default_filming(table, params, width: int = 1280, height: int = 720,
@@ -677,7 +718,7 @@ def default_filming(table, params, width: int = 1280, height: int = 720,
     (:func:`toywalk.tracking.scene.default_view`), with the ramp markers of
     :func:`toywalk.tracking.markers.default_layout` laid on as far as the camera will look."""
     motion = Motion(table, params)
-    frames = _frame_times(motion, RenderOptions() if options is None else options)
+    frames = shoot_times(motion, RenderOptions() if options is None else options)
     t0, t1 = float(frames[0]), float(frames[-1])
     # 200 Hz: the path's linear pieces are far shorter than a frame interval at 60 fps
     times = np.linspace(t0, t1, max(2, int(math.ceil((t1 - t0) * 200.0)) + 1))
@@ -688,7 +729,7 @@ def default_filming(table, params, width: int = 1280, height: int = 720,
     return camera, path, default_layout(params, reach=reach)
 
 
-def _params_dict(params) -> dict:
+def params_record(params) -> dict:
     from toywalk.model.parameters import PARAMETER_NAMES
 
     return dict(zip(PARAMETER_NAMES, (float(v) for v in params.vector()), strict=True))

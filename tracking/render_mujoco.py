@@ -47,10 +47,8 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import json
 import math
 import os
-import shutil
 import subprocess
 import sys
 import tempfile
@@ -59,7 +57,6 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from toywalk.model.files import software_version as _version
 
 from .camera import Camera, pose_matrix
 from .markers import Marker, MarkerLayout, marker_corners, marker_pose_matrix
@@ -70,11 +67,11 @@ from .render import (
     RenderError,
     RenderOptions,
     RenderResult,
-    _draw_occluder,
-    _frame_times,
-    _occluders,
-    _params_dict,
-    output_paths,
+    draw_occluder,
+    occluder_schedule,
+    shoot_times,
+    video_target,
+    write_shoot,
 )
 from .scene import CameraPath, WalkerState
 
@@ -548,7 +545,7 @@ class _Shoot:
         frame = np.clip(np.rint(image), 0, 255).astype(np.uint8)
         for ev in self.occluders:
             if ev[0] <= k < ev[0] + ev[1]:
-                _draw_occluder(frame, ev, k)
+                draw_occluder(frame, ev, k)
         if options.jpeg_quality is not None:
             _, buf = cv2.imencode(".jpg", frame, [cv2.IMWRITE_JPEG_QUALITY, options.jpeg_quality])
             frame = cv2.imdecode(buf, cv2.IMREAD_COLOR)
@@ -589,126 +586,28 @@ def render_mujoco(table, params, camera: Camera, layout: MarkerLayout, options: 
     MujocoUnavailable
         No mujoco package or no headless OpenGL backend.
     """
-    from toywalk.model.trajectory import TrajectoryTable, write_trajectory
-
     t_start = _time.perf_counter()
     options = RenderOptions.preset(1) if options is None else options
     if not isinstance(options, RenderOptions):
         raise TypeError(f"options must be RenderOptions, got {type(options).__name__}")
     if path is not None and not isinstance(path, CameraPath):
         raise TypeError(f"path must be a CameraPath or None, got {type(path).__name__}")
-    paths = output_paths(out_path)
-    video = paths["video"]
-    suffix = video.suffix.lower()
-    if suffix not in _CODECS:
-        raise RenderError(f"the video must be a .mp4 or .avi file, got {video.name}")
-    if not video.parent.is_dir():
-        raise RenderError(f"output folder does not exist: {video.parent}")
+    paths, codec = video_target(out_path, options)
     seed = rng if isinstance(rng, (int, np.integer)) or rng is None else "generator"
-    codec = options.codec or _CODECS[suffix]
     generator = np.random.default_rng(rng)
     motion = Motion(table, params)
-    times = _frame_times(motion, options)
+    times = shoot_times(motion, options)
     if path is not None:  # the scene starts where the path does
         camera = dataclasses.replace(camera, ramp_pose=path.pose(float(times[0])))
     n = len(times)
     gains = 1.0 + options.flicker * generator.standard_normal(n) if options.flicker > 0 else np.ones(n)
-    occluders = _occluders(n, options.occlusion, camera.width, camera.height, options.fps, generator)
-
-    stage = Path(tempfile.mkdtemp(prefix=f".{video.stem}.", dir=video.parent))
-    staged = {key: stage / p.name for key, p in paths.items()}
-    truth_events = paths["truth"].with_name(paths["truth"].stem + ".events.csv")
-    done = []
-    writer = None
-    try:
-        with MujocoScene(params, layout, camera, shadows=options.shadows, samples=samples) as scene:
-            shoot = _Shoot(motion, scene, options, path, generator, times, gains, occluders,
-                           np.zeros(n, dtype=int))
-            writer = cv2.VideoWriter(str(staged["video"]), cv2.VideoWriter_fourcc(*codec), float(options.fps),
-                                     (camera.width, camera.height))
-            if not writer.isOpened():
-                raise RenderError(f"cannot open a {codec} video writer for {video.name}")
-            truth = np.empty((n, 6))
-            stances, poses = [], []
-            for k in range(n):
-                writer.write(shoot.frame(k))
-                truth[k, :4], stance, truth[k, 4:] = shoot.truth(k)
-                stances.append(stance)
-                if path is not None:
-                    poses.append(np.concatenate(path.pose(float(times[k]))).tolist())
-                if progress is not None:
-                    progress(k + 1, n)
-            writer.release()
-            writer = None
-            lens, backend = scene.camera, scene.backend
-            mujoco_version = scene._mujoco.__version__
-        check = cv2.VideoCapture(str(staged["video"]))
-        ok = check.isOpened()
-        check.release()
-        if not ok or staged["video"].stat().st_size == 0:
-            raise RenderError(f"the {codec} video writer produced no readable file")
-        events = [{"time": te, "foot": f, "x": math.nan, "y": math.nan} for te, f in motion.events
-                  if times[0] <= te <= times[-1]]
-        for ev in table.events:  # keep the contact positions where the trajectory has them
-            for e in events:
-                if abs(e["time"] - float(ev["time"])) < 1e-12:
-                    e["x"], e["y"] = float(ev.get("x", math.nan)), float(ev.get("y", math.nan))
-        meta = {
-            "units": {"time": "s", "angles": "rad", "contact": "m"},
-            "source": {"kind": "render truth", "video": video.name, "trajectory": source,
-                       "trajectory_source": table.metadata.get("source"),
-                       "contact": motion.contact_source,
-                       "interpolation": "PCHIP (angles, left hip point)"},
-            "renderer": {"engine": "mujoco", "mujoco": mujoco_version, "gl_backend": backend,
-                         "msaa_samples": samples, "module": "toywalk.tracking.render_mujoco"},
-            "timestamps": (("frame k shows the trajectory at t0 + k / fps" if options.frame_times is None
-                            else "frame k shows the trajectory at frame_times[k] (given; the video file "
-                                 "is stamped t0 + k / fps)")
-                           + "; with motion blur the shutter is open over t +- exposure / (2 fps)"),
-            "motion_blur": {"renders_per_frame": shoot.subframes.tolist(), "max_step_px": BLUR_STEP_PX}
-            if options.blur_subframes > 1 and options.exposure > 0 else None,
-            "contact": "the stance foot's lowest point, from the drawn geometry",
-            "video": video.name,
-            "truth": paths["truth"].name,
-            "size": [camera.width, camera.height],
-            "fps": options.fps,
-            "frames": n,
-            "codec": codec,
-            "frame_times": times.tolist(),
-            "params": _params_dict(params),
-            "camera": (lens if path is None else dataclasses.replace(lens, ramp_pose=None)).to_dict(),
-            "camera_requested": camera.to_dict(),
-            "camera_path": None if path is None else {
-                "kind": "moves without turning (tracking.scene.CameraPath)",
-                "frames": "ramp pose (rvec, tvec) in each frame, at the frame's time",
-                "poses": poses},
-            "markers": layout.to_dict(),
-            "options": dataclasses.asdict(options),
-            "seed": int(seed) if isinstance(seed, np.integer) else seed,
-            "occluders": [{"first_frame": a, "frames": b, **p} for a, b, p in occluders],
-            "gains": gains.tolist(),
-            "software": _version(),
-        }
-        signals = {"lean": truth[:, 0], "steer": truth[:, 1], "pitch_left": truth[:, 2],
-                   "pitch_right": truth[:, 3], "contact_x": truth[:, 4], "contact_y": truth[:, 5]}
-        # the truth's metadata file NAME.json (model.trajectory's naming) is V.json itself
-        written = write_trajectory(TrajectoryTable(times, signals, stances, [*events], meta), staged["truth"])
-        if written[2] != staged["metadata"]:
-            raise RuntimeError(f"unexpected trajectory metadata name {written[2]}")
-        lens_file = lens if path is None else dataclasses.replace(lens, ramp_pose=None)
-        staged["camera"].write_text(json.dumps(lens_file.to_dict(), indent=2) + "\n")
-        staged["markers"].write_text(json.dumps(layout.to_dict(), indent=2) + "\n")
-        moves = [(written[1], truth_events),
-                 *((staged[key], paths[key]) for key in ("truth", "metadata", "camera", "markers", "video"))]
-        for a, b in moves:
-            os.replace(a, b)
-            done.append(b)
-    except BaseException:
-        if writer is not None:
-            writer.release()
-        for p in done:
-            p.unlink(missing_ok=True)
-        raise
-    finally:
-        shutil.rmtree(stage, ignore_errors=True)
+    occluders = occluder_schedule(n, options.occlusion, camera.width, camera.height, options.fps, generator)
+    with MujocoScene(params, layout, camera, shadows=options.shadows, samples=samples) as scene:
+        shoot = _Shoot(motion, scene, options, path, generator, times, gains, occluders,
+                       np.zeros(n, dtype=int))
+        renderer = {"engine": "mujoco", "mujoco": scene._mujoco.__version__, "gl_backend": scene.backend,
+                    "msaa_samples": samples, "module": "toywalk.tracking.render_mujoco",
+                    "camera_requested": camera.to_dict()}
+        write_shoot(shoot, table, params, layout, paths, codec=codec, lens=scene.camera, source=source,
+                    seed=seed, renderer=renderer, progress=progress)
     return RenderResult(paths=paths, frame_times=times, seconds=_time.perf_counter() - t_start)
