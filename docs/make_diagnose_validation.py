@@ -2,15 +2,23 @@
 it names each effect of the library hidden in a walk.
 
     python docs/make_diagnose_validation.py null [SEEDS]      -> docs/diagnose_null.csv
-    python docs/make_diagnose_validation.py effects           -> docs/diagnose_effects.csv
+    python docs/make_diagnose_validation.py effects [NAME ...] -> docs/diagnose_effects.csv
 
 Walks: the stable toy (data/params/stable-toy.toml), 12 steps from its gait, 0.002 rad of white
 noise on every angle (a tracker's level), no contact positions; the base model frees the foot
-radius and the lateral mass offset. Each hidden effect at the magnitude that moves the gait by
-SHIFT noise SDs (the largest change of any angle over a stride of the gait, phase for phase:
-:func:`magnitude`); the library's ``typical`` magnitudes move the stable toy's gait by tens of
-SDs or leave it without a gait. Each row is written as soon as it is measured, so a killed run
-keeps its rows.
+radius and the lateral mass offset, and the fit its nuisance offsets of lean, steer and pitch.
+
+Each hidden effect at the strength whose change to the gait moves it by SHIFT noise SDs beyond
+what the base's free parameters and the nuisance offsets can mimic (:func:`magnitude`; the
+largest change of any angle over a stride, phase for phase, after a least-squares refit of those
+unknowns, linearised). The first rows of the table were measured with the change before any refit
+(column ``scale`` = ``gait``); for two effects of the library that is no test at all: an uneven
+build's gait is 97 % a steer offset, and a cross slope only turns the fall line (beyond a steer
+offset it moves the gait by 1e-3 SD). A cross slope is therefore measured with the
+offsets held (``offsets`` = ``held``: the ramp's frame known, as from markers along its edge).
+The library's ``typical`` magnitudes move the stable toy's gait by tens of SDs or leave it without
+a gait. Each row is written as soon as it is measured, so a killed run keeps its rows; ``effects``
+with names measures only those.
 """
 
 from __future__ import annotations
@@ -24,10 +32,11 @@ from pathlib import Path
 import numpy as np
 from toywalk.model.effects import EFFECTS
 from toywalk.model.gait import find_gait
-from toywalk.model.parameters import load_params
+from toywalk.model.parameters import PARAMETER_NAMES, load_params
 from toywalk.model.simulate import simulate
 from toywalk.model.trajectory import TrajectoryTable
 from toywalk.sysid.discrepancy import diagnose
+from toywalk.sysid.fit import with_values
 
 HERE = Path(__file__).parent
 WORKERS = 2
@@ -49,28 +58,60 @@ def stride_curve(params) -> np.ndarray:
     return np.array([np.interp(grid, phase, s) for s in (traj.lean, traj.steer, left, right)])
 
 
-def magnitude(name: str, base=TOY) -> tuple[float, float]:
-    """The strength of effect ``name`` that moves ``base``'s gait by :data:`SHIFT` noise SDs, and
-    the shift measured there: from the ``typical`` magnitude (or a tenth of it, or a hundredth,
-    where it leaves the walker without a gait), two secant steps in the magnitude."""
-    ref = stride_curve(base)
+def mimicked(base=TOY, offsets: bool = True) -> np.ndarray:
+    """Columns (201 * 4, k) of what the base fit can do to the stride curve: the free parameters'
+    derivatives (central differences, 1e-3 of each value) and, with ``offsets``, a constant shift
+    of lean, of steer and of both pitches."""
+    values = dict(zip(PARAMETER_NAMES, base.vector(), strict=True))
+    start = {n: float(values[n]) for n in FREE}
+    columns = []
+    for name in FREE:
+        h = 1e-3 * abs(start[name])
+        up, down = (stride_curve(with_values(base, FREE, {**start, name: start[name] + d})).ravel()
+                    for d in (h, -h))
+        columns.append((up - down) / (2 * h))
+    if offsets:
+        for rows in ([0], [1], [2, 3]):
+            shift = np.zeros((4, 201))
+            shift[rows] = NOISE
+            columns.append(shift.ravel())
+    return np.array(columns).T
 
-    def shift(m):
-        return float(np.max(np.abs(stride_curve(base.replace(**{f"effects.{name}": m})) - ref))) / NOISE
+
+def shift_sds(params, base=TOY, columns=None) -> tuple[float, float]:
+    """How far ``params``' gait lies from ``base``'s, in noise SDs: the largest change of any angle
+    over a stride, phase for phase, before and after a least-squares refit on ``columns``
+    (:func:`mimicked`)."""
+    change = (stride_curve(params) - stride_curve(base)).ravel()
+    left = change
+    if columns is not None:
+        left = change - columns @ np.linalg.lstsq(columns, change, rcond=None)[0]
+    return float(np.max(np.abs(change))) / NOISE, float(np.max(np.abs(left))) / NOISE
+
+
+def magnitude(name: str, base=TOY, offsets: bool = True) -> tuple[float, float, float]:
+    """The strength of effect ``name`` that moves ``base``'s gait by :data:`SHIFT` noise SDs beyond
+    what the base fit mimics (:func:`shift_sds`), with the shifts measured there (before, after
+    the refit): from the ``typical`` magnitude (or a tenth of it, or a hundredth, where it leaves
+    the walker without a gait), two secant steps in the magnitude."""
+    columns = mimicked(base, offsets)
+
+    def shifts(m):
+        return shift_sds(base.replace(**{f"effects.{name}": m}), base, columns)
 
     m = EFFECTS[name].typical
     for _ in range(3):
         try:
-            s = shift(m)
+            s = shifts(m)
             break
         except Exception:  # no gait at this strength: try a tenth of it
             m /= 10.0
     else:
         raise RuntimeError(f"no gait with {name} at a thousandth of its typical magnitude")
     for _ in range(2):
-        m *= SHIFT / s
-        s = shift(m)
-    return m, s
+        m *= SHIFT / s[1]
+        s = shifts(m)
+    return m, *s
 
 
 def walk(params, seed: int) -> TrajectoryTable:
@@ -114,21 +155,29 @@ def null(seeds: int) -> None:
         print(seed, d.verdict, d.cause, flush=True)
 
 
-def effects() -> None:
+#: Effects measured with the nuisance offsets held (module docstring).
+HELD_OFFSETS = ("cross_slope",)
+
+
+def effects(names=()) -> None:
     out = HERE / "diagnose_effects.csv"
     done = set()
     if out.exists():
         with open(out) as fh:
-            done = {r["effect"] for r in csv.DictReader(fh)}
+            done = {(r["effect"], r["offsets"], r["scale"]) for r in csv.DictReader(fh)}
     for k, name in enumerate(EFFECTS):
-        if f"effects.{name}" in done:
+        offsets = name not in HELD_OFFSETS
+        key = (f"effects.{name}", "free" if offsets else "held", "beyond")
+        if key in done or (names and name not in names):
             continue
         clock = time.perf_counter()
-        size, moved = magnitude(name)
+        size, moved, beyond = magnitude(name, offsets=offsets)
         truth = TOY.replace(**{f"effects.{name}": size})
-        head = {"effect": f"effects.{name}", "truth": f"{size:.4g}", "shift_sd": f"{moved:.2f}"}
+        head = {"effect": key[0], "offsets": key[1], "scale": key[2], "truth": f"{size:.4g}",
+                "shift_sd": f"{moved:.2f}", "beyond_sd": f"{beyond:.2f}"}
         try:
-            d = diagnose(walk(truth, 200 + k), TOY, free=FREE, model="periodic", workers=WORKERS)
+            d = diagnose(walk(truth, 200 + k), TOY, free=FREE, model="periodic", workers=WORKERS,
+                         offsets=offsets)
         except Exception as err:  # recorded, so the table says what failed and why
             _append(out, {**head, "verdict": "error", "cause": type(err).__name__, "named": False,
                           "interval": str(err)[:120], "covers": False, "runner_up": "",
@@ -152,6 +201,6 @@ if __name__ == "__main__":
     if sys.argv[1:2] == ["null"]:
         null(int(sys.argv[2]) if len(sys.argv) > 2 else 20)
     elif sys.argv[1:2] == ["effects"]:
-        effects()
+        effects(sys.argv[2:])
     else:
         sys.exit(__doc__)

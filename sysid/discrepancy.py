@@ -49,7 +49,7 @@ from toywalk.model.trajectory import SIGNALS, TrajectoryTable
 
 from .fit import FitError, FitResult, fit, fit_bounds, gait_period, score_tests
 from .measurement import observations
-from .residuals import ResidualReport, feature_misfit, residual_report
+from .residuals import ResidualReport, feature_misfit, residual_report, scatter_noise
 from .sample import worker_pool
 
 __all__ = ["ALPHA", "MAX_EXTENDED", "PARAMETERS", "SEPARATION", "Candidate", "Diagnosis",
@@ -76,6 +76,18 @@ _BASE_ITERATIONS = 200
 #: SD of a held-out fold's samples (rad, m): weight 1e-12 of a measured one, so that the fold's
 #: fit ignores them while their residuals are still computed.
 _HELD_OUT_SD = 1e3
+#: When the walk gives no noise SD, the base fit's residual RMS stands for it unless it is more
+#: than this many times the samples' own scatter (:func:`toywalk.sysid.residuals.scatter_noise`):
+#: then it is mostly the base model's misfit, and the scatter is the noise. The scatter of a
+#: 12-step walk at 140 samples/s is the true SD within 0.099 (1 SD; tests/sysid/test_residuals.py),
+#: so a base model that fits reaches 2 only where the scatter is 5 SDs low; the point-foot base
+#: of a round-footed walker gives 11 to 64 (docs/diagnosis.md, "The seed's story").
+NOISE_INFLATION = 2.0
+#: ...provided the scatter over every other sample is at most this many times that over every
+#: sample: noise correlated from sample to sample has less scatter than its SD, and is not used
+#: (on the same walks: 4 % of white signals exceed it, and 83 % of signals whose noise is a
+#: three-sample running mean).
+NOISE_WHITENESS = 1.3
 
 
 class DiagnoseError(ValueError):
@@ -367,26 +379,28 @@ def diagnose(table: TrajectoryTable, params: Params, *, free=(), effects=None, p
     options = dict(fit_options, model=model)
     candidate_options = dict(options, max_iter=min(options.get("max_iter", 500), _CANDIDATE_ITERATIONS))
     say(f"base fit ({', '.join(free) or 'no free parameters'})")
-    first = dict(options, max_iter=min(options.get("max_iter", 500), _BASE_ITERATIONS))
-    base = fit(table, params, free, check_jacobian=False, **first)
+    base, fallback = _base_fit(table, params, free, options, say)
     seconds["base"] = base.seconds
-    fallback = ""
-    if not base.success and options.get("strikes", "model") == "model":
-        # A base model far from the walk can fail on its own heel strikes (its clock drifts
-        # through the walk and the time offset has other minima; measured: a stable-toy walk
-        # with hip damping 2e-4 ended at IPOPT's cap with the offset a whole step out) while
-        # the same misfit aligned on the measured strikes converges. Every fit of the analysis
-        # then reads the walk between the measured strikes, so that all are compared alike.
-        fallback = (f"the base fit on the model's own heel strikes did not converge "
-                    f"({base.status}), so every fit reads the walk between the measured strikes")
-        say(fallback)
-        options["strikes"] = candidate_options["strikes"] = "measured"
-        base = fit(table, params, free, check_jacobian=False, **options)
-        seconds["base"] += base.seconds
     if not base.success:
         raise DiagnoseError(f"the base model does not fit the walk ({base.status}); "
                             + "; ".join(base.warnings))
     obs = observations(table)
+    noise_note = ""
+    if base.noise_source == "estimated from residuals":
+        noise, noise_note = _scatter_check(obs, base)
+        if noise is not None:
+            say("refitting the base with the noise of the samples' scatter")
+            strikes = options.get("strikes", "model")
+            again, fallback_again = _base_fit(table, params, free, options, say, noise)
+            seconds["base"] += again.seconds
+            if again.success:
+                again.noise_source = "scatter within steps (4th differences)"
+                base, fallback = again, fallback or fallback_again
+            else:
+                options["strikes"] = strikes
+                noise_note += (f"; refitted with the scatter as the noise the base did not converge "
+                               f"({again.status}), so the residual RMS stands for the noise")
+    candidate_options["strikes"] = options.get("strikes", "model")
     res_base = residual_report(obs, base.residuals, alpha=alpha)
     sigma = base.sigma[:len(obs.value)]
     features = feature_misfit(obs, obs.value, obs.value + base.residuals, base.model_durations,
@@ -417,6 +431,8 @@ def diagnose(table: TrajectoryTable, params: Params, *, free=(), effects=None, p
     level = alpha / k
     significant = [r for r in ranking if r["score_p"] < level]
     evidence = _evidence(res_base, features, ranking[:3])
+    if noise_note:
+        evidence = f"{noise_note}; {evidence}"
     if fallback:
         evidence = f"{fallback}; {evidence}"
     if not significant and not res_base.systematic:
@@ -516,6 +532,48 @@ def diagnose(table: TrajectoryTable, params: Params, *, free=(), effects=None, p
     return Diagnosis("discrepancy", cause if causes else "unexplained", named_causes, ranking,
                      gain_block, evidence, base, extended, res_base, res_ext, features,
                      features_ext, RULE, alpha, dict(seconds, total=time.perf_counter() - clock))
+
+
+def _base_fit(table, params: Params, free, options: dict, say, noise_sd: dict | None = None):
+    """The base fit, and why it reads the walk between the measured strikes (empty: it does not).
+    A base model far from the walk can fail on its own heel strikes (its clock drifts through the
+    walk and the time offset has other minima; measured: a stable-toy walk with hip damping 2e-4
+    ended at IPOPT's cap with the offset a whole step out) while the same misfit aligned on the
+    measured strikes converges; every fit of the analysis then reads the walk between the measured
+    strikes (``options["strikes"]`` is set), so that all are compared alike."""
+    given = {} if noise_sd is None else {"noise_sd": noise_sd}
+    first = dict(options, max_iter=min(options.get("max_iter", 500), _BASE_ITERATIONS))
+    base = fit(table, params, free, check_jacobian=False, **first, **given)
+    if base.success or options.get("strikes", "model") != "model":
+        return base, ""
+    fallback = (f"the base fit on the model's own heel strikes did not converge ({base.status}), "
+                "so every fit reads the walk between the measured strikes")
+    say(fallback)
+    options["strikes"] = "measured"
+    spent = base.seconds
+    base = fit(table, params, free, check_jacobian=False, **options, **given)
+    base.seconds += spent
+    return base, fallback
+
+
+def _scatter_check(obs, base: FitResult) -> tuple[dict | None, str]:
+    """The noise SDs of the samples' own scatter where the base fit's residual RMS is mostly misfit
+    (:data:`NOISE_INFLATION`, :data:`NOISE_WHITENESS`; None: keep the residual RMS), and what was
+    found, in words (empty: nothing to say)."""
+    scatter = scatter_noise(obs)
+    ratio = {n: base.noise_sd[n] / v["sd"] for n, v in scatter.items() if v["sd"] > 0 and n in base.noise_sd}
+    if not ratio or max(ratio.values()) <= NOISE_INFLATION:
+        return None, ""
+    shown = ", ".join(f"{n} {r:.1f}" for n, r in ratio.items())
+    white = {n: v["sd_alternate"] / v["sd"] for n, v in scatter.items() if v["sd"] > 0}
+    if len(ratio) < len(scatter) or max(white.values()) > NOISE_WHITENESS:
+        return None, (f"the base fit's residual RMS is {max(ratio.values()):.1f} times the samples' scatter "
+                      f"({shown}), but the noise is correlated from sample to sample (scatter over alternate "
+                      f"samples up to {max(white.values()):.2f} times larger), so the residual RMS stands "
+                      "for the noise and the likelihood ratios are understated: give the noise SD")
+    return ({n: v["sd"] for n, v in scatter.items()},
+            f"the noise is the samples' scatter within steps: the base fit's residual RMS is {shown} "
+            "times it, mostly the model's misfit")
 
 
 def _evidence(res: ResidualReport, features: dict, top: list) -> str:
