@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 from toywalk.model.files import atomic_write_json, atomic_write_text
 
-__all__ = ["write_report"]
+__all__ = ["CHECKED_FEATURES", "PREDICTIVE_DRAWS", "predictive_checks", "write_report"]
 
 
 def _chains(path: Path, ensembles: int):
@@ -38,18 +38,95 @@ def _save(fig, path: Path) -> None:
         tmp.unlink(missing_ok=True)
 
 
-def _predictive(post, draws: np.ndarray, rng) -> tuple[np.ndarray, np.ndarray]:
-    """5 and 95 % quantiles of the model's angle at every observation over posterior draws
-    (offsets and time offset at their best values for each draw, as the likelihood profiles
-    them)."""
+#: Posterior draws behind the predictive bands and checks (a p-value is then known to 1/40).
+PREDICTIVE_DRAWS = 40
+#: The statistics of the posterior predictive checks (:func:`predictive_checks`): the gait
+#: features of the angles (:func:`toywalk.sysid.residuals.step_features`), averaged over the steps.
+CHECKED_FEATURES = ("lean_range", "steer_range", "steer_mean", "stance_pitch_range", "swing_pitch_range")
+
+
+def predictive_checks(post, draws: np.ndarray, rng, n_draws: int = PREDICTIVE_DRAWS) -> dict:
+    """Posterior predictive checks (Gelman, Meng & Stern 1996, Statistica Sinica 6:733): for each of
+    ``n_draws`` posterior draws, the model's angles at the observations (offsets and time offset at
+    their best values, as the likelihood profiles them) and a replicated walk, those angles plus
+    noise of the likelihood's SDs; a statistic of the measured walk is then compared with its
+    replicates.
+
+    - ``chi2``: the realised discrepancy, sum of squared standardised residuals of the measured
+      walk against the draw's model, beside that of the replicate; ``p`` = share of draws whose
+      replicate's is at least as large (small: the measured walk is further from the model than
+      its noise explains).
+    - each of :data:`CHECKED_FEATURES`, averaged over the steps; ``p`` two-sided: twice the
+      smaller share of replicates on either side of the measured value.
+
+    Returns
+    -------
+    dict
+        ``draws`` (used; a draw with no gait is skipped), ``low``, ``high`` (5 and 95 % of the
+        model's angles, per observation), and ``checks``: per statistic ``measured``,
+        ``replicated`` (list, one per draw; for chi2 the measured walk's discrepancy per draw),
+        ``p``.
+    """
+    from .residuals import step_features
+
+    obs, sigma = post.obs, np.asarray(post.sigma, float)[:len(post.obs.value)]
     curves = []
-    for theta in draws[rng.choice(len(draws), size=min(40, len(draws)), replace=False)]:
+    for theta in draws[rng.choice(len(draws), size=min(n_draws, len(draws)), replace=False)]:
         gait, walker = post.gait(theta)
         if gait is None:
             continue
-        curves.append(post.profile(gait, walker)[2])
+        curves.append(post.profile(gait, walker)[2][:len(obs.value)])
     curves = np.array(curves)
-    return np.percentile(curves, 5, axis=0), np.percentile(curves, 95, axis=0)
+    if not len(curves):
+        return {"draws": 0, "low": None, "high": None, "checks": {}}
+    measured = {k: float(np.nanmean(v)) for k, v in step_features(obs, obs.value).items()
+                if k in CHECKED_FEATURES}
+    chi_obs, chi_rep, features = [], [], {k: [] for k in CHECKED_FEATURES}
+    for curve in curves:
+        rep = curve + sigma * rng.standard_normal(len(curve))
+        chi_obs.append(float(np.sum(((obs.value - curve) / sigma) ** 2)))
+        chi_rep.append(float(np.sum(((rep - curve) / sigma) ** 2)))
+        for k, v in step_features(obs, rep).items():
+            if k in features:
+                features[k].append(float(np.nanmean(v)))
+    chi_obs, chi_rep = np.array(chi_obs), np.array(chi_rep)
+    checks = {"chi2": {"measured": chi_obs.tolist(), "replicated": chi_rep.tolist(),
+                       "p": float(np.mean(chi_rep >= chi_obs))}}
+    for k, reps in features.items():
+        reps = np.array(reps)
+        above, below = np.mean(reps >= measured[k]), np.mean(reps <= measured[k])
+        checks[k] = {"measured": measured[k], "replicated": reps.tolist(),
+                     "p": float(min(1.0, 2.0 * min(above, below)))}
+    return {"draws": len(curves), "low": np.percentile(curves, 5, axis=0),
+            "high": np.percentile(curves, 95, axis=0), "checks": checks}
+
+
+def _checks_figure(result: dict, path: Path) -> None:
+    """Each checked statistic's replicates as a histogram with the measured value (chi2: the
+    replicated discrepancy against the measured walk's, draw by draw)."""
+    from matplotlib.figure import Figure
+
+    checks = result["checks"]
+    fig = Figure(figsize=(9, 5.5))
+    axes = fig.subplots(2, 3).ravel()
+    for ax, (name, c) in zip(axes, checks.items(), strict=False):
+        if name == "chi2":
+            ax.scatter(c["replicated"], c["measured"], s=8, color="C0")
+            lim = [min(c["replicated"] + c["measured"]), max(c["replicated"] + c["measured"])]
+            ax.plot(lim, lim, color="k", lw=0.8)
+            ax.set_xlabel("chi-square, replicated walk", fontsize=8)
+            ax.set_ylabel("chi-square, measured walk", fontsize=8)
+        else:
+            ax.hist(np.degrees(c["replicated"]), bins=15, color="0.6")
+            ax.axvline(np.degrees(c["measured"]), color="r", lw=1.2)
+            ax.set_xlabel(f"{name} (deg), mean over steps", fontsize=8)
+        ax.set_title(f"p = {c['p']:.3f}", fontsize=8)
+        ax.tick_params(labelsize=7)
+    for ax in axes[len(checks):]:
+        ax.set_visible(False)
+    fig.suptitle(f"Posterior predictive checks ({result['draws']} draws; red: measured)", fontsize=9)
+    fig.tight_layout()
+    _save(fig, path)
 
 
 def write_report(chain: Path, summary: dict, folder: Path, post=None, table=None) -> list[Path]:
@@ -92,7 +169,8 @@ def write_report(chain: Path, summary: dict, folder: Path, post=None, table=None
     if post is not None:
         from toywalk.model.trajectory import SIGNALS
 
-        low, high = _predictive(post, draws, np.random.default_rng(0))
+        predictive = predictive_checks(post, draws, np.random.default_rng(0))
+        low, high = predictive["low"], predictive["high"]
         obs = post.obs
         fig = Figure(figsize=(8, 8))
         axes = fig.subplots(len(SIGNALS), 1, sharex=True)
@@ -109,6 +187,8 @@ def write_report(chain: Path, summary: dict, folder: Path, post=None, table=None
         fig.tight_layout()
         _save(fig, folder / "predictive.png")
         written.append(folder / "predictive.png")
+        _checks_figure(predictive, folder / "checks.png")
+        written.append(folder / "checks.png")
 
     eig = np.concatenate([b["max_abs_eigenvalue"][burn::thin].ravel() for _, b in runs])
     eig = eig[np.isfinite(eig)]
@@ -153,7 +233,25 @@ def write_report(chain: Path, summary: dict, folder: Path, post=None, table=None
               "![eigenvalues](eigenvalues.png)", ""]
     if post is not None:
         lines += ["Posterior predictive bands over the measured signals:", "",
-                  "![predictive](predictive.png)", ""]
+                  "![predictive](predictive.png)", "",
+                  f"Posterior predictive checks ({predictive['draws']} draws, each with a replicated walk: "
+                  "the model's angles plus noise of the likelihood's SDs). A small p says the measured "
+                  "walk is unlike what the fitted model produces: chi-square, further from the model "
+                  "than the noise explains; a feature, outside the replicates' spread.", "",
+                  "| statistic | measured | replicated (5-95 %) | p |", "| --- | --- | --- | --- |"]
+        for name, c in predictive["checks"].items():
+            reps = np.asarray(c["replicated"])
+            if name == "chi2":
+                lines.append(f"| chi-square | {np.median(c['measured']):.1f} (median over draws) | "
+                             f"{np.percentile(reps, 5):.1f} to {np.percentile(reps, 95):.1f} | "
+                             f"{c['p']:.3f} |")
+            else:
+                lines.append(f"| {name} (deg) | {np.degrees(c['measured']):.3f} | "
+                             f"{np.degrees(np.percentile(reps, 5)):.3f} to "
+                             f"{np.degrees(np.percentile(reps, 95)):.3f} | {c['p']:.3f} |")
+        lines += ["", "![checks](checks.png)", ""]
+        summary["predictive_checks"] = {"draws": predictive["draws"],
+                                        "p": {k: c["p"] for k, c in predictive["checks"].items()}}
     lines += returnmap_lines
     atomic_write_text(folder / "report.md", "\n".join(lines))
     atomic_write_json(folder / "report.json", summary)

@@ -95,8 +95,13 @@ def test_killed_run_resumes_with_every_stored_step(fitted, tmp_path):
     np.testing.assert_array_equal(after[:len(before)], before)
     summary = json.loads(chain.with_suffix(".json").read_text())
     assert summary["length"] == 60 and summary["names"] == ["foot_radius", "com_offset[1]"]
-    for name in ("trace.png", "corner.png", "eigenvalues.png", "predictive.png", "report.md"):
+    for name in ("trace.png", "corner.png", "eigenvalues.png", "predictive.png", "checks.png", "report.md"):
         assert (tmp_path / "report" / name).stat().st_size > 0, name
+    # the posterior predictive checks (tests/sysid/test_predictive.py): every statistic checked
+    checks = json.loads((tmp_path / "report" / "report.json").read_text())["predictive_checks"]
+    assert checks["draws"] == 40 and set(checks["p"]) == {"chi2", "lean_range", "steer_range", "steer_mean",
+                                                          "stance_pitch_range", "swing_pitch_range"}
+    assert "Posterior predictive checks" in (tmp_path / "report" / "report.md").read_text()
 
 
 def test_workers_and_dask_give_the_serial_chain(fitted, tmp_path):
