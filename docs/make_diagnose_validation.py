@@ -2,7 +2,7 @@
 it names each effect of the library hidden in a walk.
 
     python docs/make_diagnose_validation.py null [SEEDS]      -> docs/diagnose_null.csv
-    python docs/make_diagnose_validation.py effects [NAME ...] -> docs/diagnose_effects.csv
+    python docs/make_diagnose_validation.py effects [NAME ...] -> docs/diagnose_effects.csv (and .json)
 
 Walks: the stable toy (data/params/stable-toy.toml), 12 steps from its gait, 0.002 rad of white
 noise on every angle (a tracker's level), no contact positions; the base model frees the foot
@@ -24,6 +24,7 @@ with names measures only those.
 from __future__ import annotations
 
 import csv
+import json
 import math
 import sys
 import time
@@ -194,7 +195,21 @@ def effects(names=()) -> None:
                       "runner_up": f"{others[0]['effect']} ({row.get('lr', math.nan) - others[0]['lr']:.1f})"
                       if others else "",
                       "seconds": f"{time.perf_counter() - clock:.1f}"})
+        _record(HERE / "diagnose_effects.json", "|".join(key), size, d)
         print(name, f"{size:.4g}", d.verdict, d.cause, interval, flush=True)
+
+
+def _record(path: Path, key: str, truth: float, d) -> None:
+    """The analysis behind a row, for a reader who asks why: its evidence and the fitted
+    candidates (likelihood ratio, status or why not fitted, estimate, held-out gain)."""
+    store = json.loads(path.read_text()) if path.exists() else {}
+    fitted = [{k: r.get(k) for k in ("effect", "score_z", "lr", "fitted", "status", "reason", "estimate",
+                                     "held_out_gain")} for r in d.ranking if "fitted" in r]
+    store[key] = {"truth": truth, "verdict": d.verdict, "cause": d.cause, "evidence": d.evidence,
+                  "noise_source": d.base.noise_source, "fitted": fitted}
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(store, indent=1) + "\n")
+    tmp.replace(path)
 
 
 if __name__ == "__main__":

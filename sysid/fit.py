@@ -165,6 +165,10 @@ class FitResult:
         The model's duration of each measured step (s).
     options : dict
         The fit's set-up (model, offsets, mesh, strikes, iteration cap), to repeat it.
+    aligned_rms : dict of str to float or None
+        A fit on the model's strikes from the aligned stage: the angle residuals' RMS per signal
+        (rad) at the first aligned stage's solution, the measured strikes taken as exact (a fit
+        that ends far above it has found another minimum of the time offset); None otherwise.
     seconds : float
         Wall time of the fit (s).
     """
@@ -198,6 +202,7 @@ class FitResult:
     residuals: np.ndarray = dataclasses.field(repr=False, default=None)
     model_durations: np.ndarray = dataclasses.field(repr=False, default=None)
     options: dict = dataclasses.field(default_factory=dict)
+    aligned_rms: dict | None = None
     n_w: int = dataclasses.field(repr=False, default=0)
     seconds: float = 0.0
 
@@ -443,14 +448,24 @@ def fit(table: TrajectoryTable, params: Params, free, *, model: str = "periodic"
     sigma_c, source_c = _contact_sigma(pth, noise_sd)
     passes = 2 if source_c == "estimated from residuals" else passes
     x0 = problem.start(w0) if warm is None else _continued(problem, w0, warm)
+    first_aligned, x_start = None, x0
     for k in range(passes):
         sol, stats = problem.solve(x0, np.r_[sigma, sigma_c], aligned_first=warm is None)
+        if k > 0 and not stats["success"]:
+            # A later pass (new noise weights) started from the converged earlier one can fail
+            # where the same problem from the original start converges (measured: IPOPT's
+            # restoration failed after 9 iterations from the first pass's solution of a
+            # stable-toy walk with spin arrest 0.1, which converges in 9 from the start).
+            sol, stats = problem.solve(x_start, np.r_[sigma, sigma_c], aligned_first=warm is None)
         x0 = sol
+        if k == 0:  # from the start given, not from a first pass that may have left its basin
+            first_aligned = problem.aligned_rms
         if k < passes - 1 or source == "estimated from residuals":
             if source == "estimated from residuals":
                 sigma = _sigma_from(problem.residual_rms(sol), obs)
             if source_c == "estimated from residuals":
                 sigma_c = _contact_sigma(pth, problem.contact_rms(sol, floor=_CONTACT_SD_FLOOR))[0]
+    problem.aligned_rms = first_aligned
     result = problem.result(sol, stats, np.r_[sigma, sigma_c], source, source_c)
     result.seconds = time.perf_counter() - clock
     return result
@@ -704,11 +719,16 @@ class _Problem:
         there (``strikes="measured"``), on the model's strikes from that solution; from a start
         already near the model's strikes (``aligned_first`` False), the second stage only."""
         sol = {"x": x0}
+        self.aligned_rms = None
         if aligned_first or self.stage == 0.0:
             lbx, ubx = self.lbx.copy(), self.ubx.copy()
             lbx[-1] = ubx[-1] = 0.0
             sol = self.solver(x0=x0, p=np.r_[1.0 / sigma, 0.0], lbx=lbx, ubx=ubx, lbg=self.lbg,
                               ubg=self.ubg)
+            if self.stage == 1.0 and self.solver.stats()["success"]:
+                aligned = np.array(self.angles_fn(np.array(sol["x"]).ravel(), 0.0)).ravel() - self.obs.value
+                self.aligned_rms = {name: float(np.sqrt(np.mean(aligned[self.obs.signal == s_i] ** 2)))
+                                    for s_i, name in enumerate(SIGNALS) if np.any(self.obs.signal == s_i)}
         if self.stage == 1.0 and (not aligned_first or self.solver.stats()["success"]):
             sol = self.solver(x0=np.array(sol["x"]).ravel(), p=np.r_[1.0 / sigma, 1.0],
                               lbx=self.lbx, ubx=self.ubx, lbg=self.lbg, ubg=self.ubg)
@@ -924,7 +944,8 @@ class _Problem:
             jacobian_check=check, priors=self.priors, solution=x,
             model="periodic" if prob.periodic else "transient", initial_state=start, sigma=sigma,
             start_dof=len(self.start_free), contact_source=contact_source, residuals=res,
-            model_durations=durations, options=dict(self.options), n_w=self.n_w)
+            model_durations=durations, options=dict(self.options), n_w=self.n_w,
+            aligned_rms=getattr(self, "aligned_rms", None))
 
     def _gait(self, x: np.ndarray, fitted: Params, notes: list) -> dict:
         """The fitted walker's gait: the periodic fit's own, or for a transient the fitted
