@@ -726,17 +726,16 @@ class _Problem:
             sol = self.solver(x0=x0, p=np.r_[1.0 / sigma, 0.0], lbx=lbx, ubx=ubx, lbg=self.lbg,
                               ubg=self.ubg)
             if self.stage == 1.0 and self.solver.stats()["success"]:
-                aligned = np.array(self.angles_fn(np.array(sol["x"]).ravel(), 0.0)).ravel() - self.obs.value
-                self.aligned_rms = {name: float(np.sqrt(np.mean(aligned[self.obs.signal == s_i] ** 2)))
-                                    for s_i, name in enumerate(SIGNALS) if np.any(self.obs.signal == s_i)}
+                self.aligned_rms = self.residual_rms(np.array(sol["x"]).ravel(), stage=0.0)
         if self.stage == 1.0 and (not aligned_first or self.solver.stats()["success"]):
             sol = self.solver(x0=np.array(sol["x"]).ravel(), p=np.r_[1.0 / sigma, 1.0],
                               lbx=self.lbx, ubx=self.ubx, lbg=self.lbg, ubg=self.ubg)
         return np.array(sol["x"]).ravel(), self.solver.stats()
 
-    def angle_residuals(self, x: np.ndarray) -> np.ndarray:
-        """Model minus measurement of every angle observation (rad)."""
-        return np.array(self.angles_fn(x, self.stage)).ravel() - self.obs.value
+    def angle_residuals(self, x: np.ndarray, stage: float | None = None) -> np.ndarray:
+        """Model minus measurement of every angle observation (rad), read between the fit's
+        strikes (or ``stage`` 0.0: the measured ones, 1.0: the model's)."""
+        return np.array(self.angles_fn(x, self.stage if stage is None else stage)).ravel() - self.obs.value
 
     def offsets_of(self, x: np.ndarray) -> np.ndarray:
         n = self.n_w + len(self.free)
@@ -757,9 +756,9 @@ class _Problem:
         res = self.contact_residuals(x)
         return {k: max(float(np.sqrt(np.mean(res[:, i] ** 2))), floor) for i, k in enumerate(CONTACT_KEYS)}
 
-    def residual_rms(self, x: np.ndarray) -> dict:
-        """RMS of the angle residuals per signal (rad)."""
-        res = self.angle_residuals(x)
+    def residual_rms(self, x: np.ndarray, stage: float | None = None) -> dict:
+        """RMS of the angle residuals per signal (rad; ``stage`` as :meth:`angle_residuals`)."""
+        res = self.angle_residuals(x, stage)
         return {name: float(np.sqrt(np.mean(res[self.obs.signal == s_i] ** 2)))
                 for s_i, name in enumerate(SIGNALS) if np.any(self.obs.signal == s_i)}
 
