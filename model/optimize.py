@@ -335,6 +335,13 @@ class FitResult:
     status : str
         ``"converged"`` or ``"stopped"`` (iteration limit or no progress).
     message : str
+    names : tuple of str
+        The free parameters.
+    jacobian : ndarray, shape (n_res, n_free)
+        Derivative of the scaled residuals (the targets', then the priors', then the
+        regularisation's) with respect to the free parameters in their own units, at the
+        solver's last point (forward differences); ``inv(J^T J)`` is the parameters' covariance
+        when the scales are the measurements' standard deviations.
     """
 
     params: Params
@@ -346,11 +353,14 @@ class FitResult:
     failures: int
     status: str
     message: str
+    names: tuple = ()
+    jacobian: np.ndarray | None = None
 
 
 def fit_gait_targets(gait: Gait, free_names: Sequence[str], bounds: Mapping[str, tuple[float, float]],
                      targets: Mapping[str, tuple[float, float]], max_nfev: int = 200,
-                     regularisation: float = 0.0, continuation: bool = True) -> FitResult:
+                     regularisation: float = 0.0, continuation: bool = True,
+                     priors: Mapping[str, tuple[float, float]] | None = None) -> FitResult:
     """Fit free parameters so that the gait's features match target values (least squares).
 
     Minimises ``sum_k ((f_k(p) - target_k) / scale_k)^2`` (+ ``regularisation * |u - u0|^2`` in the
@@ -374,6 +384,9 @@ def fit_gait_targets(gait: Gait, free_names: Sequence[str], bounds: Mapping[str,
         Weight of the pull towards the starting parameters (0: none).
     continuation : bool
         As in :func:`minimise_max_eigenvalue`.
+    priors : mapping of str to (float, float), optional
+        Free parameter to ``(mean, sd)``: a Gaussian prior, one more residual
+        ``(value - mean) / sd`` each (a parameter measured with that uncertainty).
 
     Returns
     -------
@@ -382,7 +395,8 @@ def fit_gait_targets(gait: Gait, free_names: Sequence[str], bounds: Mapping[str,
     Raises
     ------
     ValueError
-        Unknown feature, non-positive scale, missing or bad bounds.
+        Unknown feature, non-positive scale, missing or bad bounds, a prior on a parameter that is
+        not free or with a non-positive SD.
     """
     names = tuple(free_names)
     for key, (_, scale) in targets.items():
@@ -390,19 +404,28 @@ def fit_gait_targets(gait: Gait, free_names: Sequence[str], bounds: Mapping[str,
             raise ValueError(f"unknown gait feature {key!r}; known: {', '.join(GAIT_FEATURES)}")
         if not scale > 0:
             raise ValueError(f"the scale of target {key!r} must be > 0, got {scale!r}")
+    priors = dict(priors or {})
+    for key, (_, sd) in priors.items():
+        if key not in names:
+            raise ValueError(f"a prior on {key!r}, which is not free ({', '.join(names)})")
+        if not sd > 0:
+            raise ValueError(f"the prior SD of {key!r} must be > 0, got {sd!r}")
+    prior_at = [(names.index(k), mean, sd) for k, (mean, sd) in priors.items()]
     lo, hi = _check_bounds(names, bounds, gait.params)
     evaluator = GaitEvaluator(gait.params, names, gait, continuation=continuation)
     u0 = (evaluator.values() - lo) / (hi - lo)
     keys = list(targets)
-    n_res = len(keys) + (len(names) if regularisation > 0 else 0)
+    n_res = len(keys) + len(prior_at) + (len(names) if regularisation > 0 else 0)
     best = {"cost": math.inf, "gait": gait}
 
     def residuals(u: np.ndarray) -> np.ndarray:
-        g = evaluator(lo + u * (hi - lo))
+        x = lo + u * (hi - lo)
+        g = evaluator(x)
         if g is None:
             return np.full(n_res, 1e3)
         feats = gait_features(g)
         r = [(feats[k] - targets[k][0]) / targets[k][1] for k in keys]
+        r.extend((x[i] - mean) / sd for i, mean, sd in prior_at)
         if regularisation > 0:
             r.extend(math.sqrt(regularisation) * (u - u0))
         r = np.array(r)
@@ -420,6 +443,7 @@ def fit_gait_targets(gait: Gait, free_names: Sequence[str], bounds: Mapping[str,
         residuals={k: (feats[k] - targets[k][0]) / targets[k][1] for k in keys},
         cost=float(best["cost"]), evaluations=evaluator.evaluations, failures=evaluator.failures,
         status="converged" if res.status > 0 else "stopped", message=str(res.message),
+        names=names, jacobian=np.asarray(res.jac) / (hi - lo),
     )
 
 

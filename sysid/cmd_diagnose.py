@@ -8,7 +8,10 @@ __all__ = ["cmd_diagnose", "register"]
 
 def register(subparsers) -> None:
     p = subparsers.add_parser("diagnose", help="find what the model lacks and name the cause")
-    p.add_argument("trajectory", metavar="M.csv", help="the measured walk")
+    p.add_argument("trajectory", metavar="M.csv",
+                   help="the measured walk, or a gait's summary statistics (a CSV with the "
+                        "columns quantity, value, unit, stated, resolution, note, as "
+                        "data/paper/measurements.csv)")
     p.add_argument("--params", required=True, help="the base model's parameter file")
     p.add_argument("--free", default="", help="base parameters to fit (comma-separated names)")
     p.add_argument("--effects", help="restrict the candidate effects (comma-separated names)")
@@ -17,7 +20,7 @@ def register(subparsers) -> None:
                         "foot radii, mass offsets, hip width, slope)")
     p.add_argument("--model", choices=("auto", "periodic", "transient"), default="auto",
                    help="the base model of the walk: auto tests whether the walk is on its limit "
-                        "cycle (as `toywalk fit`)")
+                        "cycle (as `toywalk fit`); summary statistics are always of the limit cycle")
     p.add_argument("--alpha", type=float, default=None, help="family-wise false-alarm rate")
     where = p.add_mutually_exclusive_group()
     where.add_argument("--workers", type=int, default=None,
@@ -40,6 +43,7 @@ def cmd_diagnose(args) -> int:
     from toywalk.sysid.discrepancy import ALPHA, DiagnoseError, candidates, diagnose
     from toywalk.sysid.fit import FitError, periodicity_test
     from toywalk.sysid.measurement import MeasurementError, observations
+    from toywalk.sysid.summary import is_summary_file
 
     out = Path(args.out)
     if out.exists() and not out.is_dir():
@@ -47,6 +51,8 @@ def cmd_diagnose(args) -> int:
     if not out.parent.is_dir():
         raise CommandError(f"output folder's parent does not exist: {out.parent}")
     params = _load(args.params)
+    if is_summary_file(args.trajectory):
+        return _summary(args, params, out)
     try:
         table = read_trajectory(args.trajectory)
         observations(table)  # a walk that cannot be fitted is refused before the progress lines
@@ -97,5 +103,51 @@ def cmd_diagnose(args) -> int:
         g = result.gain
         print(f"held-out chi-square {g['base']:.1f} -> {g['extended']:.1f}; max |eigenvalue| "
               f"{g['max_abs_eigenvalue']['base']:.4g} -> {g['max_abs_eigenvalue']['extended']:.4g}")
+    print(f"report -> {out / 'report.md'}")
+    return 0
+
+
+def _summary(args, params, out) -> int:
+    """diagnose on summary statistics (:mod:`toywalk.sysid.summary`)."""
+    import sys
+
+    from toywalk.model.parameters import PARAMETER_NAMES, ParameterError
+    from toywalk.sysid.cli import CommandError, _version
+    from toywalk.sysid.diagnosis_report import write_summary_diagnosis
+    from toywalk.sysid.discrepancy import ALPHA, DiagnoseError
+    from toywalk.sysid.summary import SummaryError, diagnose_summary, read_summary
+
+    def split(text):
+        return [n.strip() for n in text.split(",") if n.strip()] if text else None
+
+    if args.model != "auto":
+        raise CommandError("--model does not apply to summary statistics (they describe the "
+                           "limit cycle)")
+    free = split(args.free) or []
+    unknown = [name for name in free if name not in PARAMETER_NAMES]
+    if unknown:
+        raise CommandError(f"--free: {unknown[0]!r} is not a parameter (names are those of a "
+                           "parameter file: foot_radius, com_offset[1], effects.hip_damping, ...)")
+    alpha = ALPHA if args.alpha is None else args.alpha
+    if not 0 < alpha < 1:
+        raise CommandError(f"--alpha must be a false-alarm rate in (0, 1), got {alpha}")
+
+    def say(message: str) -> None:
+        print(f"... {message}", file=sys.stderr, flush=True)
+
+    try:
+        data = read_summary(args.trajectory)
+        result = diagnose_summary(params, data, free=free, effects=split(args.effects),
+                                  parameters=split(args.parameters), alpha=alpha, progress=say)
+    except (SummaryError, DiagnoseError, ParameterError) as err:
+        raise CommandError(str(err)) from err
+    write_summary_diagnosis(result, out, {"summary": str(args.trajectory), "params": str(args.params),
+                                          "free": free, "software": _version()})
+    print(f"verdict: {result.verdict}; cause: {result.cause}")
+    print(f"evidence: {result.evidence}")
+    for row in result.ranking[:5]:
+        if "chi2" in row:
+            print(f"  {row['effect']:<32s} chi-square {row['chi2']:.2f} on {row['dof']} "
+                  f"(likelihood ratio p = {row['lr_p']:.2g})")
     print(f"report -> {out / 'report.md'}")
     return 0

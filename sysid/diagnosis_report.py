@@ -23,7 +23,7 @@ from toywalk.model.files import atomic_write_json, atomic_write_text
 from .diagnostics import _save
 from .discrepancy import Diagnosis
 
-__all__ = ["write_diagnosis"]
+__all__ = ["write_diagnosis", "write_summary_diagnosis"]
 
 
 def write_diagnosis(diagnosis: Diagnosis, folder: Path, inputs: dict | None = None) -> list[Path]:
@@ -38,6 +38,12 @@ def write_diagnosis(diagnosis: Diagnosis, folder: Path, inputs: dict | None = No
     atomic_write_text(folder / "report.md", _markdown(diagnosis, data))
     atomic_write_json(folder / "report.json", data)
     return written + [folder / "report.md", folder / "report.json"]
+
+
+def _finish(fig, path: Path) -> Path:
+    fig.tight_layout()
+    _save(fig, path)
+    return path
 
 
 def _phase_figure(d: Diagnosis, folder: Path) -> Path:
@@ -63,10 +69,7 @@ def _phase_figure(d: Diagnosis, folder: Path) -> Path:
         ax.legend(fontsize=7, loc="upper right")
     axes[-1, 0].set_xlabel("phase of the step (bars: 2 SE over the steps; p: pattern repeated "
                            "every step)")
-    fig.tight_layout()
-    path = folder / "residuals_by_phase.png"
-    _save(fig, path)
-    return path
+    return _finish(fig, folder / "residuals_by_phase.png")
 
 
 def _feature_figure(d: Diagnosis, folder: Path) -> Path:
@@ -85,10 +88,7 @@ def _feature_figure(d: Diagnosis, folder: Path) -> Path:
     ax.set_yticks(y, keys, fontsize=7)
     ax.set_xlabel("measured minus model, in standard errors over the steps")
     ax.legend(fontsize=7)
-    fig.tight_layout()
-    path = folder / "features.png"
-    _save(fig, path)
-    return path
+    return _finish(fig, folder / "features.png")
 
 
 def _candidate_figure(d: Diagnosis, folder: Path) -> Path:
@@ -110,10 +110,7 @@ def _candidate_figure(d: Diagnosis, folder: Path) -> Path:
     ax.set_xscale("symlog", linthresh=10)
     ax.set_yticks(y, [r["effect"] for r in rows], fontsize=7)
     ax.legend(fontsize=7)
-    fig.tight_layout()
-    path = folder / "candidates.png"
-    _save(fig, path)
-    return path
+    return _finish(fig, folder / "candidates.png")
 
 
 def _markdown(d: Diagnosis, data: dict) -> str:
@@ -155,3 +152,117 @@ def _markdown(d: Diagnosis, data: dict) -> str:
         lines += ["", f"Predicted stability: max |eigenvalue| {eig['base']:.4g} (base) -> "
                       f"{eig['extended']:.4g} (extended).", ""]
     return "\n".join(lines) + "\n"
+
+
+def write_summary_diagnosis(diagnosis, folder: Path, inputs: dict | None = None) -> list[Path]:
+    """The report of :func:`toywalk.sysid.summary.diagnose_summary`: report.json, report.md and
+    ``numbers.png`` (each measured number's misfit in SDs: the base model, the best candidate and
+    the best pair)."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    data = diagnosis.to_json()
+    if inputs:
+        data["input"] = inputs
+    written = [_numbers_figure(diagnosis, folder)]
+    atomic_write_text(folder / "report.md", _summary_markdown(diagnosis))
+    atomic_write_json(folder / "report.json", data)
+    return written + [folder / "report.md", folder / "report.json"]
+
+
+def _summary_models(d) -> list[tuple[str, object]]:
+    """(label, SummaryFit): the base, the best single candidate and the best pair."""
+    models = [("base", d.base)]
+    fitted = [r for r in d.ranking if "chi2" in r]
+    if fitted:
+        models.append((fitted[0]["effect"], d.fits[fitted[0]["effect"]]))
+    if d.pairs:
+        key = "+".join(d.pairs[0]["pair"])
+        models.append((key.replace("+", " + "), d.fits[key]))
+    return models
+
+
+def _numbers_figure(d, folder: Path) -> Path:
+    from matplotlib.figure import Figure
+
+    names = list(d.base.residuals)
+    models = _summary_models(d)
+    fig = Figure(figsize=(8, 0.5 * len(names) + 1.5))
+    ax = fig.subplots()
+    y = np.arange(len(names))[::-1]
+    height = 0.8 / len(models)
+    for i, (label, fit) in enumerate(models):
+        vals = [fit.residuals[n] for n in names]
+        ax.barh(y + 0.4 - (i + 0.5) * height, vals, height=height, color=f"C{i}",
+                label=f"{label} (chi-square {fit.chi2:.1f})")
+    ax.axvline(0.0, color="k", lw=0.8)
+    for s in (-2, 2):
+        ax.axvline(s, color="k", ls=":", lw=0.8)
+    ax.set_xscale("symlog", linthresh=3)
+    ax.set_yticks(y, names, fontsize=8)
+    ax.set_xlabel("(model - measured) / SD")
+    ax.legend(fontsize=7)
+    return _finish(fig, folder / "numbers.png")
+
+
+def _num(v, fmt=".3g") -> str:
+    return "-" if v is None or (isinstance(v, float) and not math.isfinite(v)) else format(v, fmt)
+
+
+def _summary_markdown(d) -> str:
+    data = d.data
+    lines = ["# Discrepancy analysis from summary statistics", "",
+             f"**Verdict:** {d.verdict}. **Cause:** {d.cause if d.cause is not None else 'none'}.", "",
+             f"Evidence: {d.evidence}.", "",
+             f"Rule: {d.rule} (alpha = {d.alpha:g}, K = {len(d.ranking)} candidates).", "",
+             "## The numbers", "",
+             "| quantity | measured | SD | base model | (model - measured) / SD |",
+             "| --- | --- | --- | --- | --- |"]
+    for k, (v, s) in list(data.targets.items()) + list(data.priors.items()):
+        model = d.base.features.get(k, d.base.estimates.get(k))
+        lines.append(f"| {k} | {v:.4g} | {s:.3g} | {_num(model, '.4g')} | "
+                     f"{d.base.residuals[k]:+.2f} |")
+    lines += ["", f"Measured: stable = {data.stable}, can stand = {data.can_stand}. Base model: "
+              f"max |eigenvalue| per step {d.base.max_abs_eigenvalue:.4g} "
+              f"({'stable' if d.base.stable else 'unstable'}), can stand = {d.base.can_stand}. "
+              f"Not used: {', '.join(data.unused) or 'none'}.", "", "![numbers](numbers.png)", ""]
+    if d.ranking:
+        lines += ["## Candidates", "",
+                  "Each freed in turn with the measured parameters; effects bounded to "
+                  "physical magnitudes. `alignment`: cosine between the candidate's effect on the "
+                  "numbers and the base's misfit (1: it moves them straight towards the "
+                  "measurement).", "",
+                  "| candidate | chi-square | dof | LR p | estimate | 95 % interval | reaches | "
+                  "max abs eig / step | can stand | alignment |",
+                  "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+        for r in d.ranking:
+            name = r["effect"]
+            est = r.get("estimate", {}).get(name)
+            iv = r.get("interval", {}).get(name, [math.nan, math.nan])
+            lines.append(f"| {name} | {_num(r.get('chi2'), '.2f')} | {r.get('dof', '-')} | "
+                         f"{_num(r.get('lr_p'), '.2g')} | {_num(est, '.4g')} | "
+                         f"[{_num(iv[0], '.3g')}, {_num(iv[1], '.3g')}] | {r.get('reaches', '-')} | "
+                         f"{_num(r.get('max_abs_eigenvalue'), '.4g')} | {r.get('can_stand', '-')} | "
+                         f"{_num(r.get('alignment'), '+.2f')} |")
+    if d.pairs:
+        lines += ["", "## Pairs", "",
+                  "| pair | chi-square | dof | estimates | adds to each (p) | max abs eig / step |",
+                  "| --- | --- | --- | --- | --- | --- |"]
+        for p in d.pairs:
+            est = ", ".join(f"{k} = {v:.4g}" for k, v in p["estimate"].items())
+            lines.append(f"| {' + '.join(p['pair'])} | {p['chi2']:.2f} | {p['dof']} | {est} | "
+                         f"{', '.join(_num(a, '.2g') for a in p['adds_p'])} | "
+                         f"{p['max_abs_eigenvalue']:.4g} |")
+    s = d.sensitivity
+    if s:
+        lines += ["", "## What these numbers can identify", "",
+                  f"Singular values of the candidates' sensitivity matrix (the numbers' change in "
+                  f"SDs per typical magnitude): {', '.join(f'{v:.3g}' for v in s['singular_values'])}"
+                  f"; {len(s['targets'])} numbers span at most {len(s['targets'])} directions."]
+        if s["parallel"]:
+            lines.append("Candidates these numbers cannot tell apart (cosine of their "
+                         "sensitivities): " + "; ".join(f"{a} and {b} ({c:+.4f})"
+                                                        for a, b, c in s["parallel"]) + ".")
+        if s["no_gait"]:
+            lines.append("No gait a small step from the base for: " + ", ".join(s["no_gait"]) + ".")
+    lines += ["", f"Time: {d.seconds.get('total', math.nan):.0f} s.", ""]
+    return "\n".join(lines)

@@ -53,8 +53,8 @@ from .residuals import ResidualReport, feature_misfit, residual_report, scatter_
 from .sample import worker_pool
 
 __all__ = ["ALPHA", "MAX_EXTENDED", "PARAMETERS", "SEPARATION", "Candidate", "Diagnosis",
-           "DiagnoseError", "candidates", "diagnose", "held_out", "held_out_score", "held_out_tasks",
-           "run_fits"]
+           "DiagnoseError", "Verdict", "candidates", "diagnose", "held_out", "held_out_score",
+           "held_out_tasks", "run_fits"]
 
 #: Family-wise false-alarm rate of the verdict.
 ALPHA = 0.01
@@ -168,8 +168,8 @@ def candidates(params: Params, free=(), effects=None, parameters=None) -> list[C
 
 
 @dataclasses.dataclass
-class Diagnosis:
-    """The analysis (:func:`diagnose`); :meth:`to_json` is ``report.json`` (pipeline.md).
+class Verdict:
+    """What every discrepancy analysis answers: the fields of ``report.json`` (pipeline.md).
 
     Attributes
     ----------
@@ -180,13 +180,35 @@ class Diagnosis:
     causes : list of str
         Every named cause (two when two are decisive).
     ranking : list of dict
+        Every candidate, best first.
+    gain : dict
+        The fit before and after the named cause, and the change in predicted stability.
+    evidence : str
+        What in the data pointed to the cause.
+    """
+
+    verdict: str
+    cause: str | None
+    causes: list
+    ranking: list
+    gain: dict
+    evidence: str
+
+
+@dataclasses.dataclass
+class Diagnosis(Verdict):
+    """The analysis (:func:`diagnose`); :meth:`to_json` is ``report.json`` (pipeline.md).
+
+    Attributes
+    ----------
+    verdict, cause, causes, evidence
+        As in :class:`Verdict`.
+    ranking : list of dict
         Every candidate, best first: screening score, and for those fitted the likelihood ratio,
         held-out gain, estimate with its 95 % interval and Savage-Dickey ratio.
     gain : dict
         Held-out chi-square of the base and of the extended model, per signal RMS before and
         after, the change in predicted stability and in the gait features.
-    evidence : str
-        What in the residuals pointed to the cause.
     base : FitResult
     extended : dict of str to FitResult
     residuals, residuals_extended : ResidualReport
@@ -199,12 +221,6 @@ class Diagnosis:
         time in a worker), the held-out folds, the pair fit, and the total.
     """
 
-    verdict: str
-    cause: str | None
-    causes: list
-    ranking: list
-    gain: dict
-    evidence: str
     base: FitResult
     extended: dict
     residuals: ResidualReport
