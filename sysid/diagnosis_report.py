@@ -256,7 +256,8 @@ def _summary_markdown(d) -> str:
     if s:
         lines += ["", "## What these numbers can identify", "",
                   f"Singular values of the candidates' sensitivity matrix (the numbers' change in "
-                  f"SDs per typical magnitude): {', '.join(f'{v:.3g}' for v in s['singular_values'])}"
+                  "SDs per unit: an effect's typical magnitude, a tenth of a leg length, or the file's "
+                  f"value): {', '.join(f'{v:.3g}' for v in s['singular_values'])}"
                   f"; {len(s['targets'])} numbers span at most {len(s['targets'])} directions."]
         if s["parallel"]:
             lines.append("Candidates these numbers cannot tell apart (cosine of their "

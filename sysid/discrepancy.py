@@ -402,7 +402,7 @@ def diagnose(table: TrajectoryTable, params: Params, *, free=(), effects=None, p
     options = dict(fit_options, model=model)
     candidate_options = dict(options, max_iter=min(options.get("max_iter", 500), _CANDIDATE_ITERATIONS))
     say(f"base fit ({', '.join(free) or 'no free parameters'})")
-    base, fallback = _base_fit(table, params, free, options, say)
+    base, strikes, fallback = _base_fit(table, params, free, options, say)
     seconds["base"] = base.seconds
     if not base.success:
         raise DiagnoseError(f"the base model does not fit the walk ({base.status}); "
@@ -413,17 +413,17 @@ def diagnose(table: TrajectoryTable, params: Params, *, free=(), effects=None, p
         noise, noise_note = _scatter_check(obs, base)
         if noise is not None:
             say("refitting the base with the noise of the samples' scatter")
-            strikes = options.get("strikes", "model")
-            again, fallback_again = _base_fit(table, params, free, options, say, noise)
+            again, strikes_again, fallback_again = _base_fit(
+                table, params, free, dict(options, strikes=strikes), say, noise)
             seconds["base"] += again.seconds
             if again.success:
                 again.noise_source = "scatter within steps (4th differences)"
-                base, fallback = again, fallback or fallback_again
+                base, strikes, fallback = again, strikes_again, fallback or fallback_again
             else:
-                options["strikes"] = strikes
                 noise_note += (f"; refitted with the scatter as the noise the base did not converge "
                                f"({again.status}), so the residual RMS stands for the noise")
-    candidate_options["strikes"] = options.get("strikes", "model")
+    # Every later fit reads the walk on the base fit's strikes, so that all are compared alike.
+    options["strikes"] = candidate_options["strikes"] = strikes
     res_base = residual_report(obs, base.residuals, alpha=alpha)
     sigma = base.sigma[:len(obs.value)]
     features = feature_misfit(obs, obs.value, obs.value + base.residuals, base.model_durations,
@@ -562,21 +562,24 @@ def diagnose(table: TrajectoryTable, params: Params, *, free=(), effects=None, p
                      features_ext, RULE, alpha, dict(seconds, total=time.perf_counter() - clock))
 
 
-def _base_fit(table, params: Params, free, options: dict, say, noise_sd: dict | None = None):
-    """The base fit, and why it reads the walk between the measured strikes (empty: it does not).
+def _base_fit(table, params: Params, free, options: dict, say,
+              noise_sd: dict | None = None) -> tuple[FitResult, str, str]:
+    """The base fit, the heel strikes it reads the walk on (``options``' ``strikes``, or
+    ``"measured"`` after a fallback), and why it fell back (empty: it did not).
     A base model far from the walk can fail on its own heel strikes (its clock drifts through the
     walk and the time offset has other minima; measured: a stable-toy walk with hip damping 2e-4
     ended at IPOPT's cap with the offset a whole step out) while the same misfit aligned on the
     measured strikes converges; every fit of the analysis then reads the walk between the measured
-    strikes (``options["strikes"]`` is set), so that all are compared alike."""
+    strikes, so that all are compared alike."""
     given = {} if noise_sd is None else {"noise_sd": noise_sd}
+    strikes = options.get("strikes", "model")
     first = dict(options, max_iter=min(options.get("max_iter", 500), _BASE_ITERATIONS))
     base = fit(table, params, free, check_jacobian=False, **first, **given)
-    if options.get("strikes", "model") != "model":
-        return base, ""
+    if strikes != "model":
+        return base, strikes, ""
     worse = max((base.residual_rms[n] / v for n, v in (base.aligned_rms or {}).items() if v > 0), default=0.0)
     if base.success and worse <= ANOTHER_MINIMUM:
-        return base, ""
+        return base, strikes, ""
     if base.success:
         fallback = (f"the base fit on the model's own heel strikes ended {worse:.1f} times further from "
                     "the angles than aligned on the measured strikes (another minimum of the time "
@@ -585,11 +588,10 @@ def _base_fit(table, params: Params, free, options: dict, say, noise_sd: dict | 
         fallback = (f"the base fit on the model's own heel strikes did not converge ({base.status}), "
                     "so every fit reads the walk between the measured strikes")
     say(fallback)
-    options["strikes"] = "measured"
     spent = base.seconds
-    base = fit(table, params, free, check_jacobian=False, **options, **given)
+    base = fit(table, params, free, check_jacobian=False, **dict(options, strikes="measured"), **given)
     base.seconds += spent
-    return base, fallback
+    return base, "measured", fallback
 
 
 def _scatter_check(obs, base: FitResult) -> tuple[dict | None, str]:

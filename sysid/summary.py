@@ -23,12 +23,14 @@ and the priors.
    least squares over warm-started gait solves). **Adequate** when its chi-square is within the
    numbers' uncertainties (p >= ``alpha`` on n - k degrees of freedom); the analysis stops there.
 2. **Sensitivity** of the targets to every candidate at the base fit (forward difference, in
-   SDs per typical magnitude): which candidates point along the base's misfit (``alignment``, the
-   cosine between the two vectors), and which the numbers cannot tell apart (sensitivity vectors
-   within :data:`PARALLEL` of each other in cosine). Four numbers span at most four directions.
+   SDs per unit: an effect's typical magnitude, a tenth of a leg length, or the file's value):
+   which candidates point along the base's misfit (``alignment``, the cosine between the two
+   vectors), and which the numbers cannot tell apart (sensitivity vectors within
+   :data:`PARALLEL` of each other in cosine). Four numbers span at most four directions.
 3. **Each candidate freed in turn** (:func:`toywalk.sysid.discrepancy.candidates`: the library's
    effects and the held base parameters), an effect's strength bounded to physical magnitudes (at
-   most :data:`PHYSICAL` times its typical one, within its bounds). Scored by the likelihood
+   most :data:`PHYSICAL` times its typical one, within its bounds), a length to
+   :data:`LENGTH_REACH` tenths of a leg length either way. Scored by the likelihood
    ratio against the base (the drop in chi-square; a 50:50 mixture for a bounded null).
 4. **Pairs** of the :data:`PAIR_MEMBERS` candidates with the lowest chi-square, when no single
    one is named (two effects may be needed together where neither helps alone).
@@ -66,7 +68,7 @@ from toywalk.model.walker import Walker
 from .discrepancy import ALPHA, SEPARATION, Candidate, DiagnoseError, Verdict, candidates
 from .fit import fit_bounds
 
-__all__ = ["NOT_VISIBLE", "PAIR_MEMBERS", "PARALLEL", "PHYSICAL", "TARGETS", "SummaryData",
+__all__ = ["LENGTH_REACH", "NOT_VISIBLE", "PAIR_MEMBERS", "PARALLEL", "PHYSICAL", "TARGETS", "SummaryData",
            "SummaryDiagnosis", "SummaryFit", "diagnose_summary", "fit_summary", "is_summary_file",
            "read_summary"]
 
@@ -80,6 +82,11 @@ NOT_VISIBLE = math.radians(1.0)
 #: changes a toy's gait; ``toywalk effects``): the range the effects study follows
 #: (docs/effects_study.md), beyond which a hinge or a contact of a toy is not what it models.
 PHYSICAL = 20.0
+#: A held length (foot radii, hip width, mass offsets, leg length) is fitted within this many of
+#: its scale (a tenth of the leg length) of the file's value: 6 cm for a 15 cm leg, most of the
+#: range a Tinkertoy rod and spool allow.
+LENGTH_REACH = 4.0
+_LENGTHS = ("leg_length", "foot_radius", "foot_lateral_radius", "hip_width")
 #: Candidates (best first) whose pairs are fitted when no single candidate explains the numbers.
 PAIR_MEMBERS = 4
 #: Two candidates whose sensitivity vectors agree within this cosine move the numbers the same way
@@ -340,8 +347,9 @@ class SummaryDiagnosis(Verdict):
         Every candidate's fit, and every pair's (keyed ``a+b``).
     pairs : list of dict
     sensitivity : dict
-        Per candidate, the targets' change per typical magnitude in SDs; ``parallel`` lists the
-        pairs the numbers cannot tell apart; ``singular_values`` of the candidates' matrix.
+        Per candidate, the targets' change per unit (its ``unit`` in the ranking) in SDs;
+        ``parallel`` lists the pairs the numbers cannot tell apart; ``singular_values`` of the
+        candidates' matrix.
     seconds : dict
     """
 
@@ -376,18 +384,34 @@ def _lr_p(lr: float, bounded: bool) -> float:
 
 
 def _bounds(c: Candidate) -> tuple[float, float]:
-    """The candidate's fit bounds: an effect within PHYSICAL times its typical magnitude."""
+    """The candidate's fit bounds, within its physical ones: an effect within :data:`PHYSICAL`
+    times its typical magnitude; a length within :data:`LENGTH_REACH` of its scale (0.1 leg
+    length) of the file's value; any other parameter within a factor of 2 of it."""
     lo, hi = c.bounds
     if c.kind == "effect":
         reach = PHYSICAL * c.prior_sd
         lo, hi = max(lo, c.base - reach), min(hi, c.base + reach)
+    elif c.name in _LENGTHS or c.name.startswith("com_offset"):
+        reach = LENGTH_REACH * c.prior_sd
+        lo, hi = max(lo, c.base - reach), min(hi, c.base + reach)
+    else:
+        lo, hi = max(lo, min(0.5 * c.base, 2 * c.base)), min(hi, max(0.5 * c.base, 2 * c.base))
     return float(lo), float(hi)
 
 
+def _scale(c: Candidate) -> float:
+    """The candidate's unit of change: an effect's typical magnitude, a tenth of the leg length
+    for a length, the file's value for anything else (an inertia, a mass)."""
+    if c.kind == "effect" or c.name in _LENGTHS or c.name.startswith("com_offset"):
+        return c.prior_sd
+    return abs(c.base) or c.prior_sd
+
+
 def _sensitivity(base: SummaryFit, data: SummaryData, c: Candidate, bounds) -> list | None:
-    """d(scaled targets) per typical magnitude of the candidate at the base fit (forward
+    """d(scaled targets) per unit (:func:`_scale`) of the candidate at the base fit (forward
     difference towards the allowed side), or None when no gait is found there."""
-    step = _SENSITIVITY_STEP * c.prior_sd
+    unit = _scale(c)
+    step = _SENSITIVITY_STEP * unit
     step = step if c.base + step <= bounds[1] else -step
     try:
         params = base.gait.params.replace(**{c.name: c.base + step})
@@ -395,7 +419,7 @@ def _sensitivity(base: SummaryFit, data: SummaryData, c: Candidate, bounds) -> l
     except (GaitNotFound, ParameterError):
         return None
     feats = gait_features(gait)
-    return [float((feats[k] - base.features[k]) / sd / (step / c.prior_sd))
+    return [float((feats[k] - base.features[k]) / sd / (step / unit))
             for k, (_, sd) in data.targets.items()]
 
 
@@ -446,11 +470,11 @@ def diagnose_summary(params: Params, data: SummaryData, *, free=(), effects=None
     for k in measured:
         try:
             low, high = fit_bounds(params, measured, k)
-        except ParameterError as err:
+            if k not in data.priors:  # bounded as a candidate would be
+                bounds[k] = _bounds(candidates(params, (), effects=[], parameters=[k])[0])
+                continue
+        except (ParameterError, DiagnoseError) as err:
             raise DiagnoseError(f"cannot free {k!r}: {err}") from err
-        if k not in data.priors:
-            bounds[k] = (low, high)
-            continue
         value, sd = data.priors[k]
         bounds[k] = (max(low, value - 4 * sd), min(high, value + 4 * sd))
         if not bounds[k][0] <= params.get(k) <= bounds[k][1]:
@@ -479,16 +503,15 @@ def diagnose_summary(params: Params, data: SummaryData, *, free=(), effects=None
         s = _sensitivity(base, data, c, b)
         sens[c.name] = s
         rows[c.name] = {"effect": c.name, "kind": c.kind, "base": c.base, "bounds": list(b),
-                        "typical": c.prior_sd, "sensitivity": s,
+                        "unit": _scale(c), "sensitivity": s,
                         "alignment": -_cosine(s, base_vector) if s is not None else math.nan}
     seconds["sensitivity"] = time.perf_counter() - t0
     fits = {}
     for i, c in enumerate(pool, 1):
         say(f"candidate {i}/{K}: {c.name}")
-        free = measured + [c.name]
         b = {**bounds, c.name: _bounds(c)}
         try:
-            fit = fit_summary(base.gait, data, free, b)
+            fit = fit_summary(base.gait, data, measured + [c.name], b)
         except (GaitNotFound, ParameterError, ValueError) as err:
             rows[c.name].update(status="failed", message=str(err))
             continue
@@ -499,6 +522,7 @@ def diagnose_summary(params: Params, data: SummaryData, *, free=(), effects=None
             lr_p=_lr_p(lr, bool(c.side)), estimate={c.name: fit.estimates[c.name]},
             std={c.name: fit.std[c.name]}, interval={c.name: list(fit.interval[c.name])},
             reaches=fit.reaches(alpha), max_abs_eigenvalue=fit.max_abs_eigenvalue,
+            evaluations=fit.evaluations, failures=fit.failures,
             stable=fit.stable, can_stand=fit.can_stand, residuals=fit.residuals, seconds=fit.seconds)
     seconds["candidates"] = time.perf_counter() - t0 - seconds["sensitivity"]
     ranking = sorted(rows.values(), key=lambda r: r.get("chi2", math.inf))
@@ -520,10 +544,9 @@ def diagnose_summary(params: Params, data: SummaryData, *, free=(), effects=None
         for a, b_name in itertools.combinations(members, 2):
             say(f"pair {a} + {b_name}")
             start = fits[a] if fits[a].chi2 <= fits[b_name].chi2 else fits[b_name]
-            free = measured + [a, b_name]
             bb = {**bounds, a: _bounds(by_name[a]), b_name: _bounds(by_name[b_name])}
             try:
-                fit = fit_summary(start.gait, data, free, bb)
+                fit = fit_summary(start.gait, data, measured + [a, b_name], bb)
             except (GaitNotFound, ParameterError, ValueError):
                 continue
             key = f"{a}+{b_name}"
@@ -570,7 +593,7 @@ def _identifiability(sens: dict, data: SummaryData) -> dict:
                 if abs(_cosine(known[a], known[b])) >= PARALLEL]
     sv = (np.linalg.svd(np.array([known[n] for n in names]).T, compute_uv=False).tolist()
           if names else [])
-    return {"targets": list(data.targets), "per_typical_in_sd": sens, "parallel": parallel,
+    return {"targets": list(data.targets), "per_unit_in_sd": sens, "parallel": parallel,
             "singular_values": sv, "no_gait": [k for k, v in sens.items() if v is None]}
 
 

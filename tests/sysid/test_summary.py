@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from toywalk.model import Walker, find_gait, load_params, solve_fixed_point
 from toywalk.model.optimize import gait_features
+from toywalk.sysid.discrepancy import SEPARATION
 from toywalk.sysid.summary import (
     NOT_VISIBLE,
     SummaryData,
@@ -168,3 +169,26 @@ def test_diagnose_takes_summary_statistics(tmp_path, stable_gait, hidden):
                          capture_output=True, text=True, timeout=600)
     assert bad.returncode != 0 and len(bad.stderr.strip().splitlines()) == 1
     assert "more than 4 SDs" in bad.stderr and not (tmp_path / "r2").exists()
+
+
+def test_two_hidden_effects_fit_as_a_pair_that_four_numbers_cannot_single_out(stable_gait):
+    """The trailing share (0.1) and hip damping (2e-4, typical) hidden together. No single
+    candidate explains the numbers; the true pair fits them exactly with intervals that hold both
+    truths, but the trailing share with pivot friction fits them as well (chi-square 0.01 on 2),
+    so four numbers cannot single the pair out and nothing is named: the honest answer."""
+    truth = {"effects.impact_trailing_share": TRUTH, "effects.hip_damping": 2e-4}
+    gait = solve_fixed_point(Walker(stable_gait.params.replace(**truth)), stable_gait.fixed_point)
+    data = _numbers(gait, stable_gait.params.slope)
+    d = diagnose_summary(stable_gait.params, data, parameters=[], gait=stable_gait,
+                         effects=["impact_trailing_share", "hip_damping", "pivot_friction",
+                                  "impact_spin_arrest"])
+    assert d.verdict == "discrepancy" and d.cause == "unexplained" and d.causes == []
+    assert not any(r.get("reaches") for r in d.ranking)  # measured: the best single leaves 64 on 3
+    pair = next(p for p in d.pairs if set(p["pair"]) == set(truth))
+    assert pair["chi2"] < 1e-6 and max(pair["adds_p"]) < d.alpha / 3
+    for name, value in truth.items():
+        low, high = pair["interval"][name]
+        assert low <= value <= high
+    rival = next(p for p in d.pairs if set(p["pair"]) != set(truth))
+    assert rival["chi2"] < SEPARATION  # the tie that keeps the pair from being named
+    assert "leaves" in d.evidence
