@@ -14,7 +14,6 @@ Run: ``TOYWALK_CACHE=/tmp/twcache .venv/bin/python docs/make_paper_toy.py`` (abo
 """
 
 import json
-import math
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
@@ -22,29 +21,24 @@ from pathlib import Path
 
 import numpy as np
 from toywalk.model import Walker, load_params, solve_fixed_point
-from toywalk.model.continuation import continue_branch
 from toywalk.sysid.discrepancy import PARAMETERS
 from toywalk.sysid.summary import read_summary
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from make_effects_study import start_gaits  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 PARAMS = ROOT / "data" / "params" / "tinkertoy.toml"
 PAPER = ROOT / "data" / "paper" / "measurements.csv"
 CANDIDATE_PARAMETERS = tuple(p for p in PARAMETERS if p != "slope") + ("leg_length",)
-# The fit's fixed point (docs/tinkertoy.md), public state order.
-Z_TINKERTOY = (0.065888, 0.281833, 0.00483223, 0.0214797, -0.0884968, 2.8939, 0.0898258, 3.80887)
 
 
 def starts() -> dict:
-    """The fit's gait and its partner past the fold in slope, as (slope, fixed point)."""
-    params = load_params(PARAMS)
-    gait = solve_fixed_point(Walker(params), np.array(Z_TINKERTOY))
-    down = continue_branch(params, "slope", params.slope, params.slope - math.radians(0.1),
-                           max_points=6, ds=1e-3, ds_max=1e-2, z_start=gait.fixed_point,
-                           planar=False)
-    partner = down.points[-1]
-    return {"fit's gait": (params.slope, gait.fixed_point.tolist()),
-            "partner past the fold": (float(partner.value), np.asarray(partner.fixed_point).tolist())}
+    """The fit's gait and its partner past the fold in slope, as (slope, fixed point): the effects
+    study's first two starts."""
+    found = start_gaits()["starts"]
+    return {"fit's gait": found["4.5 deg"], "partner past the fold": found["4.5 deg partner"]}
 
 
 def run(task):
