@@ -4,10 +4,12 @@ JSON files with one clear line when they are missing or malformed."""
 from __future__ import annotations
 
 import json
+import math
 import os
 from pathlib import Path
 
-__all__ = ["DATA_DIR", "atomic_write_json", "atomic_write_text", "read_json_object", "software_version"]
+__all__ = ["DATA_DIR", "atomic_write_json", "atomic_write_text", "read_json_object", "software_version",
+           "strict_json"]
 
 #: The bundled data (data/README.md): beside the packages in the source tree, and installed with
 #: them as ``toywalk/data`` from a wheel, so the same relative path finds it in both.
@@ -28,6 +30,20 @@ def atomic_write_text(path: str | Path, text: str) -> None:
 def atomic_write_json(path: str | Path, data) -> None:
     """Write ``data`` as indented JSON, atomically (see :func:`atomic_write_text`)."""
     atomic_write_text(path, json.dumps(data, indent=2) + "\n")
+
+
+def strict_json(data):
+    """``data`` with every non-finite float (NaN, infinity) replaced by None and NumPy scalars by
+    Python numbers, recursively through dicts, lists and tuples: strict JSON has no NaN."""
+    if isinstance(data, dict):
+        return {k: strict_json(v) for k, v in data.items()}
+    if isinstance(data, (list, tuple)):
+        return [strict_json(v) for v in data]
+    if hasattr(data, "item") and getattr(data, "ndim", None) == 0:  # a NumPy scalar
+        data = data.item()
+    if isinstance(data, float) and not math.isfinite(data):
+        return None
+    return data
 
 
 def read_json_object(path: str | Path, what: str, error: type[Exception]) -> dict:

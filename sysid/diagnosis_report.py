@@ -18,7 +18,7 @@ import math
 from pathlib import Path
 
 import numpy as np
-from toywalk.model.files import atomic_write_json, atomic_write_text
+from toywalk.model.files import atomic_write_json, atomic_write_text, strict_json
 
 from .diagnostics import _save
 from .discrepancy import Diagnosis
@@ -160,7 +160,7 @@ def write_summary_diagnosis(diagnosis, folder: Path, inputs: dict | None = None)
     the best pair)."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    data = diagnosis.to_json()
+    data = strict_json(diagnosis.to_json())  # NaN (no interval, no dof left) as null
     if inputs:
         data["input"] = inputs
     written = [_numbers_figure(diagnosis, folder)]

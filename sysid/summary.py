@@ -30,10 +30,13 @@ and the priors.
 3. **Each candidate freed in turn** (:func:`toywalk.sysid.discrepancy.candidates`: the library's
    effects and the held base parameters), an effect's strength bounded to physical magnitudes (at
    most :data:`PHYSICAL` times its typical one, within its bounds), a length to
-   :data:`LENGTH_REACH` tenths of a leg length either way. Scored by the likelihood
-   ratio against the base (the drop in chi-square; a 50:50 mixture for a bounded null).
+   :data:`LENGTH_REACH` tenths of a leg length either way. Its gait is first followed along
+   that range by continuation (:data:`SCAN_POINTS` points each way, passing folds) and the fit
+   starts from the point nearest the numbers. Scored by the likelihood ratio against the base
+   (the drop in chi-square; a 50:50 mixture for a bounded null).
 4. **Pairs** of the :data:`PAIR_MEMBERS` candidates with the lowest chi-square, when no single
-   one is named (two effects may be needed together where neither helps alone).
+   one is named (two effects may be needed together where neither helps alone), each fitted from
+   both members' fits and the better kept.
 5. **A cause is named** when it is significant (p < ``alpha / K``), brings the model to the numbers
    (its chi-square p >= ``alpha``), and beats every other significant candidate by
    :data:`toywalk.sysid.discrepancy.SEPARATION` in chi-square. A pair is named when no single
@@ -59,6 +62,7 @@ from pathlib import Path
 
 import numpy as np
 from scipy import stats
+from toywalk.model.continuation import continue_branch
 from toywalk.model.gait import Gait, GaitNotFound, find_gait, solve_fixed_point
 from toywalk.model.optimize import FitResult, fit_gait_targets, gait_features
 from toywalk.model.parameters import PARAMETER_NAMES, ParameterError, Params
@@ -68,7 +72,8 @@ from toywalk.model.walker import Walker
 from .discrepancy import ALPHA, SEPARATION, Candidate, DiagnoseError, Verdict, candidates
 from .fit import fit_bounds
 
-__all__ = ["LENGTH_REACH", "NOT_VISIBLE", "PAIR_MEMBERS", "PARALLEL", "PHYSICAL", "TARGETS", "SummaryData",
+__all__ = ["LENGTH_REACH", "NOT_VISIBLE", "PAIR_MEMBERS", "PARALLEL", "PHYSICAL", "SCAN_POINTS",
+           "TARGETS", "SummaryData",
            "SummaryDiagnosis", "SummaryFit", "diagnose_summary", "fit_summary", "is_summary_file",
            "read_summary"]
 
@@ -92,6 +97,11 @@ PAIR_MEMBERS = 4
 #: Two candidates whose sensitivity vectors agree within this cosine move the numbers the same way
 #: at first order: the numbers cannot tell them apart (a 2.6 degree angle in the targets' space).
 PARALLEL = 0.999
+#: Branch points followed each way along a candidate's range before its fit (pseudo-arclength
+#: continuation, which passes folds; :func:`toywalk.model.continuation.continue_branch`). The fit
+#: starts from the point nearest the numbers: a local fit started at the end of a gait's branch
+#: (the Tinkertoy fit sits on a fold in slope) cannot take a step, and stays where it began.
+SCAN_POINTS = 40
 #: Relative step of the sensitivity's forward difference, of the candidate's typical magnitude.
 _SENSITIVITY_STEP = 0.01
 #: Least-squares evaluations per fit (each a warm-started gait solve, 0.05 to 0.1 s).
@@ -423,6 +433,44 @@ def _sensitivity(base: SummaryFit, data: SummaryData, c: Candidate, bounds) -> l
             for k, (_, sd) in data.targets.items()]
 
 
+def _scan(base: SummaryFit, data: SummaryData, c: Candidate, bounds) -> tuple[Gait | None, dict]:
+    """The gait nearest the numbers along the candidate's range, followed from the base fit by
+    continuation each way the bounds allow (the measured parameters held at the base fit's values),
+    and what the scan found; None when no branch point is nearer than the base."""
+    params = base.gait.params
+    prior_chi2 = sum(base.residuals[k] ** 2 for k in data.priors)
+    best_chi2, best, period = base.chi2, None, 1
+    found = {"points": 0, "ends": []}
+    for end in (bounds[1], bounds[0]):
+        if abs(end - c.base) <= 1e-12 * max(1.0, abs(c.base)):
+            continue
+        try:
+            branch = continue_branch(params, c.name, c.base, end, max_points=SCAN_POINTS,
+                                     ds_max=0.08, z_start=base.gait.fixed_point, planar=False)
+        except (GaitNotFound, ParameterError, ValueError) as err:
+            found["ends"].append(f"towards {end:.4g}: no branch ({err})")
+            continue
+        found["points"] += len(branch.points) - 1
+        found["ends"].append(f"towards {end:.4g}: {branch.status}, reached {branch.points[-1].value:.4g}")
+        for p in branch.points[1:]:
+            if not bounds[0] <= p.value <= bounds[1]:
+                continue
+            feats = {"stride_time": 2.0 * p.step_time, "stride_length": p.stride_length,
+                     "lean_amplitude": p.lean_amplitude, "steer_amplitude": p.steer_amplitude}
+            chi2 = prior_chi2 + sum(((feats[k] - v) / sd) ** 2 for k, (v, sd) in data.targets.items())
+            if chi2 < best_chi2:
+                best_chi2, best, period = chi2, p, branch.period
+    found["best_chi2"] = best_chi2
+    if best is None:
+        return None, found
+    found["best_value"] = best.value
+    walker = Walker(params.replace(**{c.name: best.value}), period=period)
+    try:
+        return solve_fixed_point(walker, best.fixed_point), found
+    except GaitNotFound:
+        return None, found
+
+
 def _cosine(a, b) -> float:
     a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
     na, nb = np.linalg.norm(a), np.linalg.norm(b)
@@ -510,8 +558,10 @@ def diagnose_summary(params: Params, data: SummaryData, *, free=(), effects=None
     for i, c in enumerate(pool, 1):
         say(f"candidate {i}/{K}: {c.name}")
         b = {**bounds, c.name: _bounds(c)}
+        start, scan = _scan(base, data, c, b[c.name])
+        rows[c.name]["scan"] = scan
         try:
-            fit = fit_summary(base.gait, data, measured + [c.name], b)
+            fit = fit_summary(start or base.gait, data, measured + [c.name], b)
         except (GaitNotFound, ParameterError, ValueError) as err:
             rows[c.name].update(status="failed", message=str(err))
             continue
@@ -543,12 +593,18 @@ def diagnose_summary(params: Params, data: SummaryData, *, free=(), effects=None
         by_name = {c.name: c for c in pool}
         for a, b_name in itertools.combinations(members, 2):
             say(f"pair {a} + {b_name}")
-            start = fits[a] if fits[a].chi2 <= fits[b_name].chi2 else fits[b_name]
             bb = {**bounds, a: _bounds(by_name[a]), b_name: _bounds(by_name[b_name])}
-            try:
-                fit = fit_summary(start.gait, data, measured + [a, b_name], bb)
-            except (GaitNotFound, ParameterError, ValueError):
+            # From each member's fit (the other at its base value): a member that did not help
+            # alone sits on its bound there, where a local fit may not leave it.
+            tried = []
+            for start in (fits[a], fits[b_name]):
+                try:
+                    tried.append(fit_summary(start.gait, data, measured + [a, b_name], bb))
+                except (GaitNotFound, ParameterError, ValueError):
+                    continue
+            if not tried:
                 continue
+            fit = min(tried, key=lambda f: f.chi2)
             key = f"{a}+{b_name}"
             fits[key] = fit
             adds = [_lr_p(fits[m].chi2 - fit.chi2, False) for m in (a, b_name)]

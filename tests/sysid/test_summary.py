@@ -158,7 +158,8 @@ def test_diagnose_takes_summary_statistics(tmp_path, stable_gait, hidden):
     run = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
     assert run.returncode == 0, run.stderr
     assert "cause: effects.impact_trailing_share" in run.stdout
-    report = json.loads((out / "report.json").read_text())
+    # strict JSON: NaN (a fit with no interval) is written as null
+    report = json.loads((out / "report.json").read_text(), parse_constant=lambda c: pytest.fail(c))
     assert report["cause"] == "effects.impact_trailing_share" and report["verdict"] == "discrepancy"
     assert {"ranking", "gain", "evidence"} <= set(report)
     assert (out / "numbers.png").stat().st_size > 0 and "## Candidates" in (out / "report.md").read_text()
