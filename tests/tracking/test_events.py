@@ -64,6 +64,10 @@ def test_strike_time_sd_is_about_honest():
                 z.append(err / e.time_sd)
                 sds.append(60 * e.time_sd)
         assert np.median(sds) == pytest.approx(sd_frames, rel=0.15)
+        # Honest SDs give an RMS of 1 within 0.07 (1 SD over ~110 strikes); the measured 1.30 and
+        # 1.47 carry the fit's model bias above. The band keeps that bias and fails an SD that is
+        # off by more than a factor of 1.4 low (RMS < 0.7) or of 1.36 beyond the worst bias
+        # measured (RMS > 2.0).
         assert 0.7 < np.sqrt(np.mean(np.square(z))) < 2.0
     t = np.arange(0.003, 6 * STEP, 1 / 60)
     pl, pr = gait(t)
