@@ -77,14 +77,20 @@ def closest(results: dict) -> tuple[str, str, dict]:
     return best
 
 
+def _lost(row: dict) -> bool:
+    """Whether the candidate's scan found no gait beyond a millionth of its range."""
+    scan = row.get("scan") or {}
+    low, high = row["bounds"]
+    return bool(scan) and all(abs(v - row["base"]) <= 1e-6 * (high - low)
+                              for v in scan.get("reached", [])) and bool(scan.get("reached"))
+
+
 def answer(results: dict) -> list[str]:
     label, key, fit = closest(results)
     reached = [(lab, k) for lab, data in results.items() for k, f in data["fits"].items()
                if (f["p_value"] or 0.0) >= data["alpha"]]  # None: no dof left (not here: <= 3 free)
     verdicts = "; ".join(f"from the {lab}: {data['verdict']}, cause {data['cause']}"
                          for lab, data in results.items())
-    st = min((abs(f["residuals"]["stride_time"]), lab, k) for lab, data in results.items()
-             for k, f in data["fits"].items())
     base = results["fit's gait"]["base"]
     lines = [
         f"- **Verdict**: {verdicts}.",
@@ -94,18 +100,31 @@ def answer(results: dict) -> list[str]:
          "to the toy's numbers** from either half of the fold."),
         f"- The base model (the Tinkertoy fit, slope free with its prior) leaves chi-square "
         f"{base['chi2']:.0f} on {base['dof']}: "
-        + ", ".join(f"{k} {v:+.1f} SD" for k, v in base["residuals"].items()) + ".",
+        + ", ".join(f"{k} {v:+.1f} SD" for k, v in base["residuals"].items())
+        + f" (its stride takes {base['features']['stride_time']:.3f} s, paced by its legs' "
+        "swing: docs/effects_study.md).",
         f"- The closest fit of all: {key.replace('+', ' + ')} ({label}), chi-square "
         f"{fit['chi2']:.0f} on {fit['dof']}: "
         + ", ".join(f"{k} {v:+.1f} SD" for k, v in fit["residuals"].items())
         + "; estimates " + ", ".join(f"{k} = {v:.4g}" for k, v in fit["estimates"].items())
         + f"; max |eigenvalue| per step {fit['max_abs_eigenvalue_per_step']:.3f} "
         f"({'stable' if fit['stable'] else 'unstable'}), can stand: {fit['can_stand']}.",
-        f"- The stride time is the number no candidate moves far: the least stride-time misfit "
-        f"of any fit is {st[0]:.1f} SD ({st[2].replace('+', ' + ')}, {st[1]}). The model's "
-        f"stride ({base['features']['stride_time']:.3f} s) is paced by its legs' swing "
-        f"(docs/effects_study.md); the toy's is {0.47 / base['features']['stride_time']:.2f} of it.",
     ]
+    for name in results["fit's gait"]["data"]["targets"]:
+        least = min((abs(f["residuals"][name]), lab, k) for lab, data in results.items()
+                    for k, f in data["fits"].items())
+        lines.append(f"- Closest any fit comes in {name}: {least[0]:.1f} SD "
+                     f"({least[2].replace('+', ' + ')}, {least[1]}); the base "
+                     f"{base['residuals'][name]:+.1f}.")
+    lost = sorted(set.intersection(*({r["effect"] for r in data["ranking"] if _lost(r)}
+                                     for data in results.values())))
+    if lost:
+        lines.append(
+            "- Their gait ends within a millionth of their range from the base, from either start "
+            "(the branch stalls or turns back there), so they were not tried at any physical "
+            "magnitude: " + ", ".join(lost) + ". The fit's gait is at the end of its branch; "
+            "docs/effects_study.md follows the effects on a 6 deg ramp, where they have gaits. A "
+            "candidate and the slope moved together are not scanned.")
     fits = [(lab, k, f) for lab, d in results.items() for k, f in d["fits"].items()]
     stable = [(lab, k, f) for lab, k, f in fits if f["stable"]]
     least = min(f["max_abs_eigenvalue_per_step"] for _, _, f in fits)

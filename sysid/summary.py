@@ -101,7 +101,7 @@ PARALLEL = 0.999
 #: continuation, which passes folds; :func:`toywalk.model.continuation.continue_branch`). The fit
 #: starts from the point nearest the numbers: a local fit started at the end of a gait's branch
 #: (the Tinkertoy fit sits on a fold in slope) cannot take a step, and stays where it began.
-SCAN_POINTS = 40
+SCAN_POINTS = 60
 #: Relative step of the sensitivity's forward difference, of the candidate's typical magnitude.
 _SENSITIVITY_STEP = 0.01
 #: Least-squares evaluations per fit (each a warm-started gait solve, 0.05 to 0.1 s).
@@ -440,7 +440,7 @@ def _scan(base: SummaryFit, data: SummaryData, c: Candidate, bounds) -> tuple[Ga
     params = base.gait.params
     prior_chi2 = sum(base.residuals[k] ** 2 for k in data.priors)
     best_chi2, best, period = base.chi2, None, 1
-    found = {"points": 0, "ends": []}
+    found = {"points": 0, "ends": [], "reached": []}
     for end in (bounds[1], bounds[0]):
         if abs(end - c.base) <= 1e-12 * max(1.0, abs(c.base)):
             continue
@@ -451,7 +451,9 @@ def _scan(base: SummaryFit, data: SummaryData, c: Candidate, bounds) -> tuple[Ga
             found["ends"].append(f"towards {end:.4g}: no branch ({err})")
             continue
         found["points"] += len(branch.points) - 1
-        found["ends"].append(f"towards {end:.4g}: {branch.status}, reached {branch.points[-1].value:.4g}")
+        far = max((p.value for p in branch.points), key=lambda v: abs(v - c.base))
+        found["reached"].append(far)
+        found["ends"].append(f"towards {end:.4g}: {branch.status}, reached {far:.4g}")
         for p in branch.points[1:]:
             if not bounds[0] <= p.value <= bounds[1]:
                 continue
