@@ -186,7 +186,7 @@ def _numbers_figure(d, folder: Path) -> Path:
 
     names = list(d.base.residuals)
     models = _summary_models(d)
-    fig = Figure(figsize=(8, 0.5 * len(names) + 1.5))
+    fig = Figure(figsize=(11, 0.5 * len(names) + 1.5))
     ax = fig.subplots()
     y = np.arange(len(names))[::-1]
     height = 0.8 / len(models)
@@ -197,10 +197,14 @@ def _numbers_figure(d, folder: Path) -> Path:
     ax.axvline(0.0, color="k", lw=0.8)
     for s in (-2, 2):
         ax.axvline(s, color="k", ls=":", lw=0.8)
-    ax.set_xscale("symlog", linthresh=3)
+    ax.set_xscale("symlog", linthresh=2)
+    reach = max([2.0] + [abs(f.residuals[n]) for _, f in models for n in names])
+    ticks = [t for t in (1, 2, 5, 10, 20, 50, 100, 200, 500, 1000) if t <= 1.5 * reach]
+    ax.set_xticks([-t for t in ticks[::-1]] + [0] + ticks,
+                  [f"{-t:g}" for t in ticks[::-1]] + ["0"] + [f"{t:g}" for t in ticks], fontsize=7)
     ax.set_yticks(y, names, fontsize=8)
-    ax.set_xlabel("(model - measured) / SD")
-    ax.legend(fontsize=7)
+    ax.set_xlabel("(model - measured) / SD, symmetric log scale; dotted: 2 SD")
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     return _finish(fig, folder / "numbers.png")
 
 
