@@ -109,6 +109,10 @@ _MAX_EVALUATIONS = 120
 
 _UNITS = {"s": 1.0, "ms": 1e-3, "m": 1.0, "cm": 1e-2, "mm": 1e-3, "rad": 1.0,
           "deg": math.pi / 180.0}
+_DIMENSION = {"s": "time", "ms": "time", "m": "length", "cm": "length", "mm": "length",
+              "rad": "angle", "deg": "angle"}
+_TARGET_DIMENSION = {"stride_time": "time", "stride_length": "length", "lean_amplitude": "angle",
+                     "steer_amplitude": "angle"}
 _NOT_VISIBLE_WORDS = ("none visible", "not visible", "no visible")
 _COLUMNS = ("quantity", "value", "unit", "stated", "resolution", "note")
 
@@ -202,6 +206,13 @@ def read_summary(path) -> SummaryData:
             continue
         if unit not in _UNITS:
             raise SummaryError(f"{path}: {name}: unknown unit {unit!r} (known: {', '.join(_UNITS)})")
+        expected = _TARGET_DIMENSION.get(name) or _parameter_dimension(name)
+        if expected is None:
+            raise SummaryError(f"{path}: {name}: a measured parameter must be the slope or a length "
+                               "(foot radii, hip width, leg length, com_offset[i])")
+        if _DIMENSION[unit] != expected:
+            raise SummaryError(f"{path}: {name} is a {expected}, but its unit {unit!r} is a "
+                               f"{_DIMENSION[unit]}")
         try:
             v = float(value) * _UNITS[unit]
             sd = float(row["resolution"]) * _UNITS[unit]
@@ -214,6 +225,14 @@ def read_summary(path) -> SummaryData:
     if not targets:
         raise SummaryError(f"{path}: no measured gait feature ({', '.join(TARGETS)})")
     return SummaryData(targets, priors, flags["stability"], flags["can_stand"], tuple(unused), str(path))
+
+
+def _parameter_dimension(name: str) -> str | None:
+    if name == "slope":
+        return "angle"
+    if name in _LENGTHS or name.startswith("com_offset"):
+        return "length"
+    return None
 
 
 @dataclasses.dataclass

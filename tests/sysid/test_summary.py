@@ -79,6 +79,12 @@ def test_the_papers_numbers_are_read_as_measurements():
     ("quantity,value,unit,stated,resolution,note\nstride_time,0.47,s,about,,\n", "must be numbers"),
     ("quantity,value,unit,stated,resolution,note\nstride_time,0.47,s,about,0,\n", "must be > 0"),
     ("quantity,value,unit,stated,resolution,note\ntotal_mass,120,g,about,10,\n", "no measured gait"),
+    ("quantity,value,unit,stated,resolution,note\nstride_time,0.47,cm,about,0.01,\n",
+     "stride_time is a time, but its unit 'cm' is a length"),
+    ("quantity,value,unit,stated,resolution,note\nstride_time,0.47,s,about,0.01,\n"
+     "leg_mass,55,g,about,1,\n", "unknown unit 'g'"),
+    ("quantity,value,unit,stated,resolution,note\nstride_time,0.47,s,about,0.01,\n"
+     "inertia[0],3,m,about,1,\n", "must be the slope or a length"),
 ])
 def test_a_bad_summary_file_is_refused_with_the_reason(tmp_path, text, words):
     path = tmp_path / "numbers.csv"
