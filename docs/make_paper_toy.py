@@ -46,7 +46,7 @@ def starts() -> dict:
 def run(task):
     """One start's analysis; returns its report.json and the markdown body."""
     label, (slope, z) = task
-    from toywalk.sysid.diagnosis_report import _summary_markdown, write_summary_diagnosis
+    from toywalk.sysid.diagnosis_report import _summary_markdown, numbers_figure
     from toywalk.sysid.summary import diagnose_summary
 
     params = load_params(PARAMS).replace(slope=slope)
@@ -56,12 +56,7 @@ def run(task):
                          progress=lambda m: print(f"[{label}] {m} ({time.time() - t0:.0f} s)",
                                                   file=sys.stderr, flush=True))
     if label == "fit's gait":
-        folder = HERE / "_paper_toy"
-        write_summary_diagnosis(d, folder)
-        (folder / "numbers.png").replace(HERE / "paper_toy.png")
-        for f in folder.iterdir():
-            f.unlink()
-        folder.rmdir()
+        numbers_figure(d, HERE / "paper_toy.png")
     body = _summary_markdown(d).replace("\n## ", "\n#### ").replace("# Discrepancy analysis "
                                                                     "from summary statistics\n", "")
     return label, d.to_json(), body

@@ -33,14 +33,13 @@ def register(subparsers) -> None:
 
 def cmd_diagnose(args) -> int:
     import os
-    import sys
     from pathlib import Path
 
-    from toywalk.model.parameters import PARAMETER_NAMES, ParameterError
+    from toywalk.model.parameters import ParameterError
     from toywalk.model.trajectory import read_trajectory
     from toywalk.sysid.cli import CommandError, _load, _version
     from toywalk.sysid.diagnosis_report import write_diagnosis
-    from toywalk.sysid.discrepancy import ALPHA, DiagnoseError, candidates, diagnose
+    from toywalk.sysid.discrepancy import DiagnoseError, candidates, diagnose
     from toywalk.sysid.fit import FitError, periodicity_test
     from toywalk.sysid.measurement import MeasurementError, observations
     from toywalk.sysid.summary import is_summary_file
@@ -59,36 +58,23 @@ def cmd_diagnose(args) -> int:
     except (OSError, ValueError) as err:
         raise CommandError(str(err)) from err
 
-    def split(text):
-        return [n.strip() for n in text.split(",") if n.strip()] if text else None
-
-    free = split(args.free) or []
-    alpha = ALPHA if args.alpha is None else args.alpha
-    if not 0 < alpha < 1:
-        raise CommandError(f"--alpha must be a false-alarm rate in (0, 1), got {alpha}")
+    alpha = _alpha(args)
     workers = min(4, os.cpu_count() or 1) if args.workers is None else args.workers
     if workers < 1:
         raise CommandError(f"--workers must be >= 1, got {workers}")
-    # The names, before any fit: a misspelt one is refused at once, not after minutes of fitting.
-    unknown = [name for name in free if name not in PARAMETER_NAMES]
-    if unknown:
-        raise CommandError(f"--free: {unknown[0]!r} is not a parameter (names are those of a "
-                           "parameter file: foot_radius, com_offset[1], effects.hip_damping, ...)")
+    free = _free(args)
     try:
-        candidates(params, free, split(args.effects), split(args.parameters))
+        candidates(params, free, _split(args.effects), _split(args.parameters))
     except (DiagnoseError, ParameterError) as err:
         raise CommandError(str(err)) from err
-
-    def say(message: str) -> None:
-        print(f"... {message}", file=sys.stderr, flush=True)
 
     try:
         model = args.model
         if model == "auto":
-            say("periodicity test (is the walk on the model's limit cycle?)")
+            _say("periodicity test (is the walk on the model's limit cycle?)")
             model = periodicity_test(table, params, free, check_jacobian=False).chosen.model
-        result = diagnose(table, params, free=free, effects=split(args.effects),
-                          parameters=split(args.parameters), alpha=alpha, model=model, progress=say,
+        result = diagnose(table, params, free=free, effects=_split(args.effects),
+                          parameters=_split(args.parameters), alpha=alpha, model=model, progress=_say,
                           workers=workers, scheduler=args.scheduler)
     except (DiagnoseError, FitError, MeasurementError, ParameterError) as err:
         raise CommandError(str(err)) from err
@@ -107,38 +93,59 @@ def cmd_diagnose(args) -> int:
     return 0
 
 
-def _summary(args, params, out) -> int:
-    """diagnose on summary statistics (:mod:`toywalk.sysid.summary`)."""
+def _split(text):
+    """A comma-separated option as a list of names (None when not given)."""
+    return [n.strip() for n in text.split(",") if n.strip()] if text else None
+
+
+def _say(message: str) -> None:
+    """A progress line on stderr."""
     import sys
 
-    from toywalk.model.parameters import PARAMETER_NAMES, ParameterError
-    from toywalk.sysid.cli import CommandError, _version
-    from toywalk.sysid.diagnosis_report import write_summary_diagnosis
-    from toywalk.sysid.discrepancy import ALPHA, DiagnoseError
-    from toywalk.sysid.summary import SummaryError, diagnose_summary, read_summary
+    print(f"... {message}", file=sys.stderr, flush=True)
 
-    def split(text):
-        return [n.strip() for n in text.split(",") if n.strip()] if text else None
 
-    if args.model != "auto":
-        raise CommandError("--model does not apply to summary statistics (they describe the "
-                           "limit cycle)")
-    free = split(args.free) or []
+def _alpha(args) -> float:
+    from toywalk.sysid.cli import CommandError
+    from toywalk.sysid.discrepancy import ALPHA
+
+    alpha = ALPHA if args.alpha is None else args.alpha
+    if not 0 < alpha < 1:
+        raise CommandError(f"--alpha must be a false-alarm rate in (0, 1), got {alpha}")
+    return alpha
+
+
+def _free(args) -> list[str]:
+    """``--free``'s names, checked before any fit: a misspelt one is refused at once, not after
+    minutes of fitting."""
+    from toywalk.model.parameters import PARAMETER_NAMES
+    from toywalk.sysid.cli import CommandError
+
+    free = _split(args.free) or []
     unknown = [name for name in free if name not in PARAMETER_NAMES]
     if unknown:
         raise CommandError(f"--free: {unknown[0]!r} is not a parameter (names are those of a "
                            "parameter file: foot_radius, com_offset[1], effects.hip_damping, ...)")
-    alpha = ALPHA if args.alpha is None else args.alpha
-    if not 0 < alpha < 1:
-        raise CommandError(f"--alpha must be a false-alarm rate in (0, 1), got {alpha}")
+    return free
 
-    def say(message: str) -> None:
-        print(f"... {message}", file=sys.stderr, flush=True)
 
+def _summary(args, params, out) -> int:
+    """diagnose on summary statistics (:mod:`toywalk.sysid.summary`)."""
+    from toywalk.model.parameters import ParameterError
+    from toywalk.sysid.cli import CommandError, _version
+    from toywalk.sysid.diagnosis_report import write_summary_diagnosis
+    from toywalk.sysid.discrepancy import DiagnoseError
+    from toywalk.sysid.summary import SummaryError, diagnose_summary, read_summary
+
+    if args.model != "auto":
+        raise CommandError("--model does not apply to summary statistics (they describe the "
+                           "limit cycle)")
+    free = _free(args)
+    alpha = _alpha(args)
     try:
         data = read_summary(args.trajectory)
-        result = diagnose_summary(params, data, free=free, effects=split(args.effects),
-                                  parameters=split(args.parameters), alpha=alpha, progress=say)
+        result = diagnose_summary(params, data, free=free, effects=_split(args.effects),
+                                  parameters=_split(args.parameters), alpha=alpha, progress=_say)
     except (SummaryError, DiagnoseError, ParameterError) as err:
         raise CommandError(str(err)) from err
     write_summary_diagnosis(result, out, {"summary": str(args.trajectory), "params": str(args.params),

@@ -23,7 +23,7 @@ from toywalk.model.files import atomic_write_json, atomic_write_text, strict_jso
 from .diagnostics import _save
 from .discrepancy import Diagnosis
 
-__all__ = ["write_diagnosis", "write_summary_diagnosis"]
+__all__ = ["numbers_figure", "write_diagnosis", "write_summary_diagnosis"]
 
 
 def write_diagnosis(diagnosis: Diagnosis, folder: Path, inputs: dict | None = None) -> list[Path]:
@@ -163,7 +163,7 @@ def write_summary_diagnosis(diagnosis, folder: Path, inputs: dict | None = None)
     data = strict_json(diagnosis.to_json())  # NaN (no interval, no dof left) as null
     if inputs:
         data["input"] = inputs
-    written = [_numbers_figure(diagnosis, folder)]
+    written = [numbers_figure(diagnosis, folder / "numbers.png")]
     atomic_write_text(folder / "report.md", _summary_markdown(diagnosis))
     atomic_write_json(folder / "report.json", data)
     return written + [folder / "report.md", folder / "report.json"]
@@ -181,7 +181,9 @@ def _summary_models(d) -> list[tuple[str, object]]:
     return models
 
 
-def _numbers_figure(d, folder: Path) -> Path:
+def numbers_figure(d, path: Path) -> Path:
+    """Each measured number's misfit in SDs (the base, the best candidate, the best pair) of a
+    :class:`toywalk.sysid.summary.SummaryDiagnosis`, written to ``path``."""
     from matplotlib.figure import Figure
 
     names = list(d.base.residuals)
@@ -205,7 +207,7 @@ def _numbers_figure(d, folder: Path) -> Path:
     ax.set_yticks(y, names, fontsize=8)
     ax.set_xlabel("(model - measured) / SD, symmetric log scale; dotted: 2 SD")
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
-    return _finish(fig, folder / "numbers.png")
+    return _finish(fig, Path(path))
 
 
 def _num(v, fmt=".3g") -> str:

@@ -54,7 +54,7 @@ from .sample import worker_pool
 
 __all__ = ["ALPHA", "MAX_EXTENDED", "PARAMETERS", "SEPARATION", "Candidate", "Diagnosis",
            "DiagnoseError", "Verdict", "candidates", "diagnose", "held_out", "held_out_score",
-           "held_out_tasks", "run_fits"]
+           "held_out_tasks", "lr_p_value", "run_fits"]
 
 #: Family-wise false-alarm rate of the verdict.
 ALPHA = 0.01
@@ -253,10 +253,11 @@ RULE = ("adequate: no candidate's score test below alpha/K and no signal with a 
         "otherwise, or when the extended model still leaves a repeated pattern")
 
 
-def _p_value(lr: float, candidate: Candidate) -> float:
-    """Likelihood-ratio p-value on one degree of freedom; a 50:50 mixture for a bounded null."""
+def lr_p_value(lr: float, bounded: bool) -> float:
+    """Likelihood-ratio p-value on one degree of freedom; a 50:50 mixture with zero for a null on
+    a physical bound (Self & Liang 1987, JASA 82:605)."""
     p = float(stats.chi2.sf(max(lr, 0.0), 1))
-    return 0.5 * p if candidate.side else p
+    return 0.5 * p if bounded else p
 
 
 def _savage_dickey(estimate: float, se: float, candidate: Candidate) -> float:
@@ -478,7 +479,7 @@ def diagnose(table: TrajectoryTable, params: Params, *, free=(), effects=None, p
         lr = base.chi2 - ext.chi2
         est, se = ext.estimates[name], ext.std[name]
         row.update(fitted=bool(ext.success), status=ext.status, lr=lr,
-                   lr_p=_p_value(lr, by_name[name]), score=lr,
+                   lr_p=lr_p_value(lr, bool(by_name[name].side)), score=lr,
                    estimate={name: est}, interval={name: [est - 1.96 * se, est + 1.96 * se]},
                    std=se, log_bayes_factor=_savage_dickey(est, se, by_name[name]),
                    max_abs_eigenvalue=ext.gait.get("max_abs_eigenvalue"))
@@ -511,7 +512,8 @@ def diagnose(table: TrajectoryTable, params: Params, *, free=(), effects=None, p
                            warm=extended[best["effect"]], **candidate_options, **noise_opt)
                 seconds["pair"] = pair.seconds
                 lr_pair = extended[best["effect"]].chi2 - pair.chi2
-                if pair.success and _p_value(lr_pair, by_name[runner["effect"]]) < alpha / max(k - 1, 1):
+                bounded = bool(by_name[runner["effect"]].side)
+                if pair.success and lr_p_value(lr_pair, bounded) < alpha / max(k - 1, 1):
                     causes.append(runner["effect"])
                     extended["+".join(causes)] = pair
     res_ext, features_ext, gain_block = None, None, {}

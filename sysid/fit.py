@@ -450,23 +450,23 @@ def fit(table: TrajectoryTable, params: Params, free, *, model: str = "periodic"
     x0 = problem.start(w0) if warm is None else _continued(problem, w0, warm)
     first_aligned, x_start = None, x0
     for k in range(passes):
-        sol, stats = problem.solve(x0, np.r_[sigma, sigma_c], aligned_first=warm is None)
+        sol, stats, aligned_rms = problem.solve(x0, np.r_[sigma, sigma_c], aligned_first=warm is None)
         if k > 0 and not stats["success"]:
             # A later pass (new noise weights) started from the converged earlier one can fail
             # where the same problem from the original start converges (measured: IPOPT's
             # restoration failed after 9 iterations from the first pass's solution of a
             # stable-toy walk with spin arrest 0.1, which converges in 9 from the start).
-            sol, stats = problem.solve(x_start, np.r_[sigma, sigma_c], aligned_first=warm is None)
+            sol, stats, aligned_rms = problem.solve(x_start, np.r_[sigma, sigma_c],
+                                                    aligned_first=warm is None)
         x0 = sol
         if k == 0:  # from the start given, not from a first pass that may have left its basin
-            first_aligned = problem.aligned_rms
+            first_aligned = aligned_rms
         if k < passes - 1 or source == "estimated from residuals":
             if source == "estimated from residuals":
                 sigma = _sigma_from(problem.residual_rms(sol), obs)
             if source_c == "estimated from residuals":
                 sigma_c = _contact_sigma(pth, problem.contact_rms(sol, floor=_CONTACT_SD_FLOOR))[0]
-    problem.aligned_rms = first_aligned
-    result = problem.result(sol, stats, np.r_[sigma, sigma_c], source, source_c)
+    result = problem.result(sol, stats, np.r_[sigma, sigma_c], source, source_c, first_aligned)
     result.seconds = time.perf_counter() - clock
     return result
 
@@ -717,20 +717,22 @@ class _Problem:
     def solve(self, x0: np.ndarray, sigma: np.ndarray, aligned_first: bool = True):
         """Aligned on the measured strikes (time offset held at 0), then, unless the fit stays
         there (``strikes="measured"``), on the model's strikes from that solution; from a start
-        already near the model's strikes (``aligned_first`` False), the second stage only."""
+        already near the model's strikes (``aligned_first`` False), the second stage only.
+        Returns the solution, IPOPT's statistics, and the angle residuals' RMS per signal at the
+        aligned stage's solution when the model's strikes follow it (else None)."""
         sol = {"x": x0}
-        self.aligned_rms = None
+        aligned_rms = None
         if aligned_first or self.stage == 0.0:
             lbx, ubx = self.lbx.copy(), self.ubx.copy()
             lbx[-1] = ubx[-1] = 0.0
             sol = self.solver(x0=x0, p=np.r_[1.0 / sigma, 0.0], lbx=lbx, ubx=ubx, lbg=self.lbg,
                               ubg=self.ubg)
             if self.stage == 1.0 and self.solver.stats()["success"]:
-                self.aligned_rms = self.residual_rms(np.array(sol["x"]).ravel(), stage=0.0)
+                aligned_rms = self.residual_rms(np.array(sol["x"]).ravel(), stage=0.0)
         if self.stage == 1.0 and (not aligned_first or self.solver.stats()["success"]):
             sol = self.solver(x0=np.array(sol["x"]).ravel(), p=np.r_[1.0 / sigma, 1.0],
                               lbx=self.lbx, ubx=self.ubx, lbg=self.lbg, ubg=self.ubg)
-        return np.array(sol["x"]).ravel(), self.solver.stats()
+        return np.array(sol["x"]).ravel(), self.solver.stats(), aligned_rms
 
     def angle_residuals(self, x: np.ndarray, stage: float | None = None) -> np.ndarray:
         """Model minus measurement of every angle observation (rad), read between the fit's
@@ -848,7 +850,7 @@ class _Problem:
         return out
 
     def result(self, x: np.ndarray, stats: dict, sigma: np.ndarray, noise_source: str,
-               contact_source: str) -> FitResult:
+               contact_source: str, aligned_rms: dict | None = None) -> FitResult:
         obs, prob = self.obs, self.prob
         theta = self.theta(x)
         names = (list(self.free) + (list(OFFSETS) if self.offsets else [])
@@ -944,7 +946,7 @@ class _Problem:
             model="periodic" if prob.periodic else "transient", initial_state=start, sigma=sigma,
             start_dof=len(self.start_free), contact_source=contact_source, residuals=res,
             model_durations=durations, options=dict(self.options), n_w=self.n_w,
-            aligned_rms=getattr(self, "aligned_rms", None))
+            aligned_rms=aligned_rms)
 
     def _gait(self, x: np.ndarray, fitted: Params, notes: list) -> dict:
         """The fitted walker's gait: the periodic fit's own, or for a transient the fitted

@@ -30,6 +30,7 @@ import warnings
 from pathlib import Path
 
 import numpy as np
+from toywalk.model.files import strict_json
 from toywalk.model.parameters import Params
 from toywalk.model.trajectory import SIGNALS, TrajectoryTable
 from toywalk.model.walker import STATE_NAMES
@@ -447,5 +448,4 @@ def _arviz_stats(stacked: np.ndarray, names) -> tuple[dict, dict]:
 def _finite(value) -> float | None:
     """``value`` as a float, or None where it is not finite (a statistic of a chain that never
     moved): the summary file is strict JSON, which has no Infinity or NaN."""
-    value = float(value)
-    return value if math.isfinite(value) else None
+    return strict_json(float(value))

@@ -69,7 +69,7 @@ from toywalk.model.parameters import PARAMETER_NAMES, ParameterError, Params
 from toywalk.model.statics import can_stand
 from toywalk.model.walker import Walker
 
-from .discrepancy import ALPHA, SEPARATION, Candidate, DiagnoseError, Verdict, candidates
+from .discrepancy import ALPHA, SEPARATION, Candidate, DiagnoseError, Verdict, candidates, lr_p_value
 from .fit import fit_bounds
 
 __all__ = ["LENGTH_REACH", "NOT_VISIBLE", "PAIR_MEMBERS", "PARALLEL", "PHYSICAL", "SCAN_POINTS",
@@ -407,11 +407,6 @@ RULE = ("adequate: the base model's chi-square of the numbers has p >= alpha; a 
         "otherwise (no held-out check: a few numbers cannot be split into folds)")
 
 
-def _lr_p(lr: float, bounded: bool) -> float:
-    p = float(stats.chi2.sf(max(lr, 0.0), 1))
-    return 0.5 * p if bounded else p
-
-
 def _bounds(c: Candidate) -> tuple[float, float]:
     """The candidate's fit bounds, within its physical ones: an effect within :data:`PHYSICAL`
     times its typical magnitude; a length within :data:`LENGTH_REACH` of its scale (0.1 leg
@@ -590,7 +585,7 @@ def diagnose_summary(params: Params, data: SummaryData, *, free=(), effects=None
         lr = base.chi2 - fit.chi2
         rows[c.name].update(
             status=fit.status, chi2=fit.chi2, dof=fit.dof, p_fit=fit.p_value, lr=lr,
-            lr_p=_lr_p(lr, bool(c.side)), estimate={c.name: fit.estimates[c.name]},
+            lr_p=lr_p_value(lr, bool(c.side)), estimate={c.name: fit.estimates[c.name]},
             std={c.name: fit.std[c.name]}, interval={c.name: list(fit.interval[c.name])},
             reaches=fit.reaches(alpha), max_abs_eigenvalue=fit.max_abs_eigenvalue,
             evaluations=fit.evaluations, failures=fit.failures,
@@ -628,7 +623,7 @@ def diagnose_summary(params: Params, data: SummaryData, *, free=(), effects=None
             fit = min(tried, key=lambda f: f.chi2)
             key = f"{a}+{b_name}"
             fits[key] = fit
-            adds = [_lr_p(fits[m].chi2 - fit.chi2, False) for m in (a, b_name)]
+            adds = [lr_p_value(fits[m].chi2 - fit.chi2, False) for m in (a, b_name)]
             pairs.append({"pair": [a, b_name], "chi2": fit.chi2, "dof": fit.dof,
                           "p_fit": fit.p_value, "reaches": fit.reaches(alpha),
                           "adds_p": adds, "estimate": {m: fit.estimates[m] for m in (a, b_name)},
