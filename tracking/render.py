@@ -215,11 +215,11 @@ class RenderResult:
 
 def output_paths(out: str | Path) -> dict:
     """The files written for a video ``V.mp4``: video, truth (V.truth.csv), metadata (V.json),
-    camera (V.camera.json), markers (V.markers.json)."""
+    camera (V.camera.json), markers (V.markers.json). ``V`` may hold dots (``walk.level1.mp4``)."""
     out = Path(out)
     stem = out.with_suffix("")
     return {"video": out, "truth": stem.with_name(stem.name + ".truth.csv"),
-            "metadata": stem.with_suffix(".json"),
+            "metadata": stem.with_name(stem.name + ".json"),
             "camera": stem.with_name(stem.name + ".camera.json"),
             "markers": stem.with_name(stem.name + ".markers.json")}
 

@@ -266,7 +266,8 @@ def test_options_change_the_image_reproducibly(toy_params):
         RenderOptions(exposure=2.0)
 
 
-@pytest.mark.parametrize("name, fourcc", [("v.mp4", "mp4v"), ("v.avi", "MJPG")])
+# a name with dots (walk.level1.mp4) keeps all of them in its files' names: walk.level1.json
+@pytest.mark.parametrize("name, fourcc", [("v.mp4", "mp4v"), ("v.avi", "MJPG"), ("v.level1.mp4", "mp4v")])
 def test_video_files_read_back(tmp_path, toy_params, name, fourcc):
     table = _walk(toy_params, duration=0.3, n=31, switch=0.15)
     out = tmp_path / name
