@@ -215,21 +215,26 @@ def _breakpoint(t, ys, idx, lo, hi, sigma, n_grid=41):
     """Best breakpoint tau in [lo, hi] of continuous piecewise quadratics through all ys[idx]:
     (tau, the rate jumps of each y, tau's SD for noise SD ``sigma``)."""
     tt = t[idx]
+    y = np.column_stack([v[idx] for v in ys])  # (samples, signals)
+
+    def design(tau):
+        """The piecewise quadratics' columns for breakpoints ``tau`` (any shape): shape
+        tau.shape + (samples, 5)."""
+        x = tt - np.asarray(tau, float)[..., None]
+        left = x < 0
+        return np.stack([np.ones_like(x), np.where(left, x, 0), np.where(left, x * x, 0),
+                         np.where(left, 0, x), np.where(left, 0, x * x)], axis=-1)
 
     def sse(tau):
-        x = tt - tau
-        left = x < 0
-        a = np.column_stack([np.ones_like(x), np.where(left, x, 0), np.where(left, x * x, 0),
-                             np.where(left, 0, x), np.where(left, 0, x * x)])
-        total, jumps = 0.0, []
-        for y in ys:
-            coef, *_ = np.linalg.lstsq(a, y[idx], rcond=None)
-            total += float(np.sum((a @ coef - y[idx]) ** 2))
-            jumps.append(coef[3] - coef[1])
-        return total, jumps
+        a = design(tau)
+        coef = np.linalg.lstsq(a, y, rcond=None)[0]
+        return float(np.sum((a @ coef - y) ** 2)), list(coef[3] - coef[1])
 
     grid = np.linspace(lo, hi, n_grid)
-    vals = np.array([sse(g)[0] for g in grid])
+    # every breakpoint of the grid at once: least squares through the pseudo-inverse (an SVD per
+    # breakpoint, as lstsq's)
+    a = design(grid)
+    vals = np.sum((a @ (np.linalg.pinv(a) @ y) - y) ** 2, axis=(1, 2))
     # the noise level: the measured one, or the fit's own residuals where they say it is worse
     dof = len(ys) * len(idx) - (5 * len(ys) + 1)
     sigma = max(sigma, float(np.sqrt(vals.min() / dof))) if dof > 0 else sigma
@@ -410,25 +415,34 @@ def _periodic_refine(t, pl, pr, ok, events, sigma, degree=4, iterations=20, min_
     windows = [np.flatnonzero(ok & (t >= bounds[i]) & (t < bounds[i + 1])) for i in range(len(taus))]
     scale = 0.5 * step  # u in units of half a step, for a well-conditioned basis
 
+    powers = np.arange(1, degree + 1)
+
     def basis(u):
-        x = u / scale
+        """The templates' columns at offsets ``u`` (any shape): shape u.shape + (2 degree + 1,)."""
+        x = (u / scale)[..., None]
+        xp = x ** powers
         left = x < 0
-        cols = [np.ones_like(x)]
-        cols += [np.where(left, x**p, 0.0) for p in range(1, degree + 1)]
-        cols += [np.where(left, 0.0, x**p) for p in range(1, degree + 1)]
-        return np.column_stack(cols)
+        return np.concatenate([np.ones_like(x), np.where(left, xp, 0.0), np.where(left, 0.0, xp)],
+                              axis=-1)
 
     def template(mine, idx, ys, at):
-        """Template coefficients and total squared residual for strike times ``at``."""
+        """Template coefficients (one column per pitch) and total squared residual for strike
+        times ``at``."""
         a = basis(np.concatenate([t[w] - at[i] for i, w in zip(mine, idx, strict=True)]))
-        coefs, total = [], 0.0
-        for y in ys:
-            c = np.linalg.lstsq(a, np.concatenate([y[w] for w in idx]), rcond=None)[0]
-            coefs.append(c)
-            total += float(np.sum((a @ c - np.concatenate([y[w] for w in idx])) ** 2))
-        return coefs, total
+        y = np.column_stack([np.concatenate([v[w] for w in idx]) for v in ys])
+        coefs = np.linalg.lstsq(a, y, rcond=None)[0]
+        return coefs, float(np.sum((a @ coefs - y) ** 2))
 
     grid = np.linspace(-dt, dt, 41)
+
+    def shifted(mine, idx, ys, at):
+        """The templates' total squared residual with the strike times ``at`` all shifted by each
+        of the grid's shifts (template's, for every shift at once)."""
+        a = basis(np.concatenate([t[w] - at[i] for i, w in zip(mine, idx, strict=True)])[None, :]
+                  - grid[:, None])  # (grid, samples, columns)
+        y = np.column_stack([np.concatenate([v[w] for w in idx]) for v in ys])
+        return np.sum((a @ (np.linalg.pinv(a) @ y) - y) ** 2, axis=(1, 2))
+
     sds = np.array([e.time_sd for e in events])
     for foot in ("L", "R"):
         mine = np.flatnonzero(feet == foot)
@@ -448,14 +462,15 @@ def _periodic_refine(t, pl, pr, ok, events, sigma, degree=4, iterations=20, min_
             for j, (i, w) in enumerate(zip(mine, idx, strict=True)):
                 if len(w) < 4:
                     continue
-                costs = [sum(float(np.sum((basis(t[w] - taus[i] - g) @ c - y[w]) ** 2))
-                             for c, y in zip(coefs, ys, strict=True)) for g in grid]
-                shifts[j], own_sd[j] = _parabola_min(grid, np.array(costs), sigma)
+                # the strike's samples against the templates at every shift of the grid at once
+                fitted = basis(t[w][None, :] - taus[i] - grid[:, None]) @ coefs  # (grid, samples, 2)
+                measured = np.column_stack([y[w] for y in ys])
+                costs = np.sum((fitted - measured) ** 2, axis=(1, 2))
+                shifts[j], own_sd[j] = _parabola_min(grid, costs, sigma)
             shifts -= np.mean(shifts)  # each strike against the others; the common shift is above
             taus[mine] += shifts
             # the common shift of this foot's strikes: the only thing the kink at u = 0 fixes
-            common, common_sd = _parabola_min(
-                grid, np.array([template(mine, idx, ys, taus + g)[1] for g in grid]), sigma)
+            common, common_sd = _parabola_min(grid, shifted(mine, idx, ys, taus), sigma)
             taus[mine] += common
             if max(abs(common), np.max(np.abs(shifts))) < 1e-3 * dt:
                 break

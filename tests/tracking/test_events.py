@@ -186,3 +186,39 @@ def test_too_few_samples_for_noise_no_warning():
     pl[gaps] = np.nan
     pr[gaps] = np.nan
     assert heel_strikes(t, pl, pr) == []
+
+
+def test_breakpoint_grid_matches_one_fit_at_a_time():
+    """The breakpoint search fits every breakpoint of its grid at once (pseudo-inverses of a stack
+    of designs); a plain loop of least-squares fits, one breakpoint at a time, gives the same
+    breakpoint, rate jumps and SD."""
+    import toywalk.tracking.events as ev
+
+    rng = np.random.default_rng(11)
+    t = np.arange(30) / 60
+    kink = 0.243
+    x = t - kink
+    ys = (np.where(x < 0, 0.3 * x - 2 * x * x, -0.9 * x + x * x) + rng.normal(0, 1e-3, t.size),
+          np.where(x < 0, -0.5 * x, 0.2 * x + 3 * x * x) + rng.normal(0, 1e-3, t.size))
+    idx = np.arange(4, 27)
+
+    def sse(tau):
+        u = t[idx] - tau
+        left = u < 0
+        a = np.column_stack([np.ones_like(u), np.where(left, u, 0), np.where(left, u * u, 0),
+                             np.where(left, 0, u), np.where(left, 0, u * u)])
+        total, jumps = 0.0, []
+        for y in ys:
+            coef = np.linalg.lstsq(a, y[idx], rcond=None)[0]
+            total += float(np.sum((a @ coef - y[idx]) ** 2))
+            jumps.append(coef[3] - coef[1])
+        return total, jumps
+
+    grid = np.linspace(0.2, 0.3, 41)
+    vals = np.array([sse(g)[0] for g in grid])
+    sigma = max(1e-3, float(np.sqrt(vals.min() / (2 * idx.size - 11))))
+    tau, tau_sd = ev._parabola_min(grid, vals, sigma)
+    got_tau, got_jumps, got_sd = ev._breakpoint(t, ys, idx, 0.2, 0.3, 1e-3)
+    assert abs(got_tau - kink) < 2e-3  # and it is the kink
+    np.testing.assert_allclose([got_tau, got_sd], [tau, tau_sd], rtol=1e-9)
+    np.testing.assert_allclose(got_jumps, sse(tau)[1], rtol=1e-9)
