@@ -288,30 +288,54 @@ def marker_matches(gray, corners: np.ndarray, dictionary: cv2.aruco.Dictionary, 
     dictionary : cv2.aruco.Dictionary
     marker_id : int
     """
+    read = _read_code(gray, corners, dictionary, marker_id, max_border_errors=max_border_errors,
+                      min_contrast=min_contrast)
+    if read is None or read[0] > max_bit_errors:
+        return False
+    errors, inner = read
+    cells = int(dictionary.markerSize) + 2
+    others = min((dictionary.getDistanceToId(inner, j, True) for j in range(len(dictionary.bytesList))
+                  if j != int(marker_id)), default=cells * cells)
+    return errors < others
+
+
+def _read_code(gray, corners: np.ndarray, dictionary: cv2.aruco.Dictionary, marker_id: int, *,
+               max_border_errors: int = 1, min_contrast: float = 20.0):
+    """The inner bits the quad ``corners`` shows (:func:`marker_matches`) and how many differ from
+    marker ``marker_id``'s: (errors, bits as uint8 (k, k)), or None when the quad shows no code (too
+    little contrast, more than ``max_border_errors`` light border cells)."""
     bits = int(dictionary.markerSize)
     cells = bits + 2
     means = _cell_means(gray, corners, cells)
     if not np.all(np.isfinite(means)):
-        return False
-    level, _ = cv2.threshold(np.clip(np.rint(means), 0, 255).astype(np.uint8).reshape(1, -1), 0, 255,
-                             cv2.THRESH_BINARY | cv2.THRESH_OTSU)
-    light = means > level
+        return None
+    levels = np.clip(np.rint(means), 0, 255).astype(np.uint8)
+    level, _ = cv2.threshold(levels.reshape(1, -1), 0, 255, cv2.THRESH_BINARY | cv2.THRESH_OTSU)
+    # the cells as Otsu saw them (whole grey levels): it puts its threshold at the dark class's
+    # top, so a dark cell of mean 1.2 would be light against the unrounded means
+    light = levels > level
     if light.all() or not light.any():
-        return False
+        return None
     if means[light].mean() - means[~light].mean() < min_contrast:
-        return False
+        return None
     border = np.ones((cells, cells), dtype=bool)
     border[1:-1, 1:-1] = False
     if int(light[border].sum()) > max_border_errors:
-        return False
+        return None
     inner = light[1:-1, 1:-1].astype(np.uint8)
-    expected = cv2.aruco.generateImageMarker(dictionary, int(marker_id), cells)[1:-1, 1:-1] > 127
-    errors = int(np.sum(inner.astype(bool) != expected))
-    if errors > max_bit_errors:
-        return False
-    others = min((dictionary.getDistanceToId(inner, j, True) for j in range(len(dictionary.bytesList))
-                  if j != int(marker_id)), default=cells * cells)
-    return errors < others
+    return int(np.sum(inner.astype(bool) != _code(dictionary, int(marker_id)))), inner
+
+
+_CODES: dict = {}
+
+
+def _code(dictionary: cv2.aruco.Dictionary, marker_id: int) -> np.ndarray:
+    """Marker ``marker_id``'s inner bits (bool (k, k), True = light), kept once computed."""
+    key = (bytes(dictionary.bytesList[marker_id].ravel()), int(dictionary.markerSize))
+    if key not in _CODES:
+        cells = int(dictionary.markerSize) + 2
+        _CODES[key] = cv2.aruco.generateImageMarker(dictionary, int(marker_id), cells)[1:-1, 1:-1] > 127
+    return _CODES[key]
 
 
 class _Shifted:
@@ -422,6 +446,67 @@ class MarkerDetector:
             del found[i]
         return found
 
+    def follow(self, image: np.ndarray, predicted: dict, *, check=None, max_move: float = 1.5,
+               max_bit_errors: int = 1) -> dict[int, np.ndarray]:
+        """Markers found where they are predicted, without ArUco's search.
+
+        For markers whose image moves little and smoothly from frame to frame (a fixed camera's
+        ramp markers, or a panning camera's predicted at constant velocity), each predicted quad
+        is refined by the edge lines of :func:`refine_corners` (as a detected marker's rough
+        corners are, all markers at once) and kept when every corner lies within ``max_move``
+        pixels of its prediction and its area within 10 % of the predicted one's. The markers in
+        ``check``, and any that moved more than a third of ``max_move`` from its prediction, must
+        also show their own code in their cells to ``max_bit_errors`` bits (continuity has already
+        named them, so unlike :meth:`recover` no other id is compared). A marker that fails
+        (covered, moved more than predicted, too near the frame's edge) is left to :meth:`detect`.
+
+        Parameters
+        ----------
+        image : ndarray, shape (rows, cols[, 3])
+        predicted : dict of int to ndarray, shape (4, 2)
+            Predicted corners (full-frame pixels, ArUco's order) by marker id.
+        check : collection of int, optional
+            Ids whose code is read in any case (default: all).
+
+        Returns
+        -------
+        dict of int to ndarray, shape (4, 2)
+            The markers followed: refined corners by id.
+        """
+        height, width = image.shape[:2]
+        ids, quads, crops = [], [], []
+        for marker_id, corners in predicted.items():
+            pred = np.asarray(corners, float).reshape(4, 2)
+            if not np.all(np.isfinite(pred)):
+                continue
+            pad = max_move + 8.0  # the refinement's widest band, and the motion allowed
+            lo = np.floor(pred.min(axis=0) - pad).astype(int)
+            hi = np.ceil(pred.max(axis=0) + pad).astype(int) + 1
+            if lo[0] < 0 or lo[1] < 0 or hi[0] > width or hi[1] > height:
+                continue
+            crop = image[lo[1]:hi[1], lo[0]:hi[0]]
+            if crop.ndim == 3:
+                crop = cv2.cvtColor(crop, cv2.COLOR_BGR2GRAY)
+            ids.append(int(marker_id))
+            quads.append(pred)
+            crops.append(_Shifted(crop, lo.astype(float)))
+        out: dict[int, np.ndarray] = {}
+        if not ids:
+            return out
+        quads = np.array(quads)
+        refined, ok = _refine(crops, quads, self.camera, 12, 1)
+        moved = np.max(np.hypot(*np.moveaxis(refined - quads, -1, 0)), axis=1)  # NaN where not finite
+        ratio = np.abs(_quad_area(refined)) / np.maximum(np.abs(_quad_area(quads)), 1e-9)
+        keep = ok & (moved <= max_move) & (ratio > 0.9) & (ratio < 1.1)
+        for k in np.flatnonzero(keep):
+            marker_id, new, gray = ids[k], refined[k], crops[k]
+            if moved[k] > max_move / 3 or check is None or marker_id in check:
+                read = _read_code(gray, new, self._dictionary, marker_id)
+                if read is None or read[0] > max_bit_errors:
+                    continue
+            out[marker_id] = new
+        return out
+
     def recover(self, image: np.ndarray, marker_id: int, corners: np.ndarray, *, search: float = 6.0,
                 max_bit_errors: int = 1) -> np.ndarray | None:
         """Find marker ``marker_id`` near predicted ``corners`` where the detector missed it.
@@ -469,10 +554,11 @@ class MarkerDetector:
         return None
 
 
-def _quad_area(c: np.ndarray) -> float:
-    """Signed area (pixels^2) of a quad (4, 2) (shoelace formula)."""
-    x, y = c[:, 0], c[:, 1]
-    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
+def _quad_area(c: np.ndarray):
+    """Signed area (pixels^2) of a quad (4, 2) (shoelace formula), or of each of m quads (m, 4, 2)."""
+    x, y = c[..., 0], c[..., 1]
+    area = 0.5 * np.sum(x * y[..., _NEXT] - y * x[..., _NEXT], axis=-1)
+    return float(area) if c.ndim == 2 else area
 
 
 def _search_shifts(step: float, search: float) -> list[np.ndarray]:

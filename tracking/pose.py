@@ -96,7 +96,7 @@ def _candidates(camera, obj, img, guess):
 
 
 def estimate_pose(camera: Camera, object_points, image_points, *, guess=None,
-                  max_rms: float = 4.0) -> PoseEstimate | None:
+                  max_rms: float = 4.0, trust_guess: float = 0.0) -> PoseEstimate | None:
     """The pose best explaining the correspondences, or None if none fits to ``max_rms`` pixels.
 
     Parameters
@@ -108,22 +108,35 @@ def estimate_pose(camera: Camera, object_points, image_points, *, guess=None,
     guess : (rvec, tvec), optional
         A predicted pose (e.g. from the previous frames): tried first; among the planar
         solver's two mirror solutions, the one nearer to the guess wins when both fit alike.
+    trust_guess : float
+        Pixels: when the fit refined from ``guess`` alone has an RMS error at most this, it is
+        taken without trying the closed-form solvers (for a body of many markers, which has no
+        mirror ambiguity, followed from frame to frame). 0 always tries them.
     """
     obj = np.ascontiguousarray(np.asarray(object_points, float).reshape(-1, 3))
     img = np.ascontiguousarray(np.asarray(image_points, float).reshape(-1, 2))
     if len(obj) != len(img) or len(obj) < 4:
         raise ValueError(f"need n >= 4 matching object and image points, got {len(obj)} and {len(img)}")
     fits = []
-    for r, t in _candidates(camera, obj, img, guess):
+
+    def refine(r, t):
         if not (np.all(np.isfinite(r)) and np.all(np.isfinite(t))):
-            continue
+            return
         r, t = cv2.solvePnPRefineLM(obj, img, camera.matrix, camera.distortion, r.copy(), t.copy(), _LM)
         if not (np.all(np.isfinite(r)) and np.all(np.isfinite(t))) or t[2, 0] <= 0:
-            continue
+            return
         res, jac = reprojection_residuals(camera, obj, img, r, t)
         rms = float(np.sqrt(np.mean(res**2)))
         if np.isfinite(rms) and np.all(np.isfinite(jac)):
             fits.append((rms, r.ravel(), t.ravel(), jac))
+
+    if guess is not None and trust_guess > 0:
+        refine(np.asarray(guess[0], float).reshape(3, 1), np.asarray(guess[1], float).reshape(3, 1))
+        if fits and fits[0][0] <= trust_guess:
+            return _estimate(fits[0], len(obj), max_rms)
+        fits = []
+    for r, t in _candidates(camera, obj, img, guess):
+        refine(r, t)
     if not fits:
         return None
     best = min(fits, key=lambda f: f[0])
@@ -138,11 +151,16 @@ def estimate_pose(camera: Camera, object_points, image_points, *, guess=None,
 
         alike = [f for f in fits if f[0] <= max(2.0 * best[0], best[0] + 0.3)]
         best = min(alike, key=angle)
-    rms, r, t, jac = best
+    return _estimate(best, len(obj), max_rms)
+
+
+def _estimate(fit, n_points: int, max_rms: float) -> PoseEstimate | None:
+    """The PoseEstimate of a fit (rms, rvec, tvec, Jacobian), or None beyond ``max_rms``."""
+    rms, r, t, jac = fit
     if not rms <= max_rms:
         return None
     try:
         normal = np.linalg.inv(jac.T @ jac)
     except np.linalg.LinAlgError:
         return None
-    return PoseEstimate(rvec=r, tvec=t, rms=rms, n_points=len(obj), normal=normal)
+    return PoseEstimate(rvec=r, tvec=t, rms=rms, n_points=n_points, normal=normal)

@@ -78,6 +78,12 @@ __all__ = ["FrameSource", "TrackError", "TrackResult", "Tracker", "open_video", 
 
 LEGS = {"left_leg": "L", "right_leg": "R"}
 _WIDTH_SAMPLES = 25  # frames whose joint fits estimate the hip width (when not given)
+#: A followed ramp marker's code is read at least every this many frames (its edges, within
+#: 0.5 px of where it was predicted, are checked in every frame)
+RAMP_CODE_EVERY = 8
+#: A ramp marker sought and not found (hidden by the walker, an occluder) is sought again after
+#: 2, 4, 8, then every 8 frames
+_RAMP_WAIT = 8
 
 
 @dataclasses.dataclass
@@ -174,6 +180,7 @@ class Tracker:
         self.counts = {"frames": 0, "full_searches": 0, "roi_searches": 0}
         self._full_interval = 1
         self._last_full = -10**9
+        self._ramp_wait: dict[int, tuple[int, int]] = {}  # ramp id -> (next frame sought, interval)
         self.track_seconds = 0.0
 
     # prediction and search regions
@@ -189,17 +196,43 @@ class Tracker:
             return r1 + k * (r1 - r0), t1 + k * (t1 - t0), (r1 - r0, t1 - t0)
         return r1, t1, (np.zeros(3), np.zeros(3))
 
-    def _regions(self, body: _Body, pred) -> list:
+    def _follow_ramp(self, image: np.ndarray, frame: int) -> dict:
+        """The ramp markers of the last frame followed into this one
+        (:meth:`toywalk.tracking.detect.MarkerDetector.follow`), each predicted from its corners
+        in the last two frames at constant velocity (pixels a frame) and its code read every
+        :data:`RAMP_CODE_EVERY` frames (and whenever it strays from its prediction)."""
+        if not self.detections:
+            return {}
+        last = self.detections[-1]
+        before = self.detections[-2] if len(self.detections) >= 2 else {}
+        predicted = {i: 2 * c - before[i] if i in before else c
+                     for i, c in last.items() if self._owner[i] == "ramp"}
+        check = {i for i in predicted if (frame + i) % RAMP_CODE_EVERY == 0}
+        return self.detector.follow(image, predicted, check=check) if predicted else {}
+
+    def _regions(self, body: _Body, pred, skip=(), sought: list | None = None) -> list:
+        """Search regions (pixels) around the body's markers that face the camera at the predicted
+        pose, but those in ``skip`` (ids). With ``sought`` (a list), only markers predicted wholly
+        within the frame are sought (the detector finds no marker the frame's edge cuts), and
+        their ids are appended to it."""
         rvec, tvec, (dr, dt) = pred
         rot = cv2.Rodrigues(rvec.reshape(3, 1))[0]
         centres = body.centres @ rot.T + tvec
         normals = body.normals @ rot.T
         facing = np.einsum("ij,ij->i", normals, centres) < 0
+        if skip:
+            facing &= np.array([i not in skip for i in body.ids])
         if not facing.any():
             return []
         # all facing markers' corners projected at once, (k, 4, 2)
         corners = self._corners[body.name][facing].reshape(-1, 3)
         uv = self._project(corners, rvec, tvec).reshape(-1, 4, 2)
+        if sought is not None:
+            inside = np.all((uv >= 0) & (uv < self.camera.size), axis=(1, 2))
+            sought.extend(int(i) for i in np.array(body.ids)[facing][inside])
+            if not inside.any():
+                return []
+            uv, corners = uv[inside], corners.reshape(-1, 4, 3)[inside].reshape(-1, 3)
         # margin: the marker's quiet zone plus how far a prediction error of one frame's motion
         # moves it (the motion itself is already in the prediction)
         motion = self._project(corners, rvec + dr, tvec + dt).reshape(-1, 4, 2) - uv
@@ -252,12 +285,20 @@ class Tracker:
         # the legs' markers and the ramp's are sought apart: each group's regions with its own
         # smallest marker size (the detector's thresholds depend on it)
         searched = False
+        # the ramp's markers are followed from their last corners; only those not followed are
+        # sought by the detector, each at growing intervals while it stays unseen
+        followed = self._follow_ramp(image, frame) if self.roi and "ramp" in self.bodies else {}
+        found.update(followed)
+        skip = set(followed) | {i for i, (due, _) in self._ramp_wait.items() if frame < due}
+        sought: list[int] = []
         for group in (tuple(LEGS), ("ramp",)):
             regions = []
             self._min_side = math.inf  # smallest predicted marker extent (pixels), set by _regions
             for name in group:
                 if preds.get(name) is not None:
-                    regions += self._regions(self.bodies[name], preds[name])
+                    ramp = name == "ramp"
+                    regions += self._regions(self.bodies[name], preds[name], skip=skip if ramp else (),
+                                             sought=sought if ramp else None)
             if regions:
                 more = self.detector.detect(image, merge_regions(regions, self.camera.width,
                                                                  self.camera.height),
@@ -266,6 +307,15 @@ class Tracker:
                     found.setdefault(i, c)
                 searched = True
         self.counts["roi_searches"] += searched
+        self.counts["ramp_followed"] = self.counts.get("ramp_followed", 0) + len(followed)
+        for i in sought:
+            if self._owner[i] != "ramp":
+                continue
+            if i in found:
+                self._ramp_wait.pop(i, None)
+            else:
+                wait = min(2 * self._ramp_wait.get(i, (0, 1))[1], _RAMP_WAIT)
+                self._ramp_wait[i] = (frame + wait, wait)
         # bodies predicted but not found in their regions count as lost
         for name, p in preds.items():
             if p is not None and not any(self._owner[i] == name for i in found):
@@ -479,7 +529,10 @@ class Tracker:
         def fit(use):
             obj = np.concatenate([body.points[i] for i in use])
             img = np.concatenate([found[i] for i in use])
-            return estimate_pose(self.camera, obj, img, guess=guess)
+            # several markers on a board have no mirror ambiguity: a good fit from the last pose
+            # is the pose
+            return estimate_pose(self.camera, obj, img, guess=guess,
+                                 trust_guess=self.outlier_rms if len(use) >= 2 else 0.0)
 
         est = fit(ids)
         if len(ids) >= 2 and (est is None or est.rms > self.outlier_rms):
