@@ -222,3 +222,30 @@ def test_breakpoint_grid_matches_one_fit_at_a_time():
     assert abs(got_tau - kink) < 2e-3  # and it is the kink
     np.testing.assert_allclose([got_tau, got_sd], [tau, tau_sd], rtol=1e-9)
     np.testing.assert_allclose(got_jumps, sse(tau)[1], rtol=1e-9)
+
+
+def test_a_fast_smooth_turn_is_not_an_outlier():
+    """The clearing walker filmed at 60 frames/s (10.6 frames a step; data/sample/walk.truth.csv,
+    every other sample): its swing leg reverses within three frames, which no quadratic through
+    five samples on one side predicts to a degree (the one-sided test flagged 37 and 27 of 175
+    samples, and the tracker then made them gaps: 0 of 15 heel strikes). Interpolation from both
+    sides follows the turn; a pose 3 degrees off, as a mirrored single-marker fit gives, is still
+    flagged."""
+    import toywalk.tracking.events as ev
+    from toywalk.model.trajectory import read_trajectory
+
+    from ..conftest import DATA
+
+    truth = read_trajectory(DATA / "sample" / "walk.truth.csv")
+    rng = np.random.default_rng(0)
+    pl, pr = truth.signals["pitch_left"][::2], truth.signals["pitch_right"][::2]
+    count = ev.fit_samples_per_side(ev.step_samples(pl, pr), 5)
+    assert count == 5
+    jumps = [40, 77, 120]  # mid-swing and near strikes of the left leg
+    for y in (pl, pr):
+        y = y + rng.normal(0, np.radians(0.05), y.size)  # the tracker's pose noise at level 1
+        sd = ev.noise_sd(y)
+        assert not ev.isolated_outliers(y, sd, count=count).any()
+        wrong = y.copy()
+        wrong[jumps] += np.radians(3.0)
+        assert list(np.flatnonzero(ev.isolated_outliers(wrong, sd, count=count))) == jumps
