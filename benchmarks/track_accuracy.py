@@ -321,9 +321,9 @@ def _grouped_regions(regions, stages: _Stages):
     """``Tracker._regions`` timed; it sets the group the next detection searches for."""
     timed = stages.wrap("regions of interest", regions)
 
-    def grouped(body, pred):
+    def grouped(body, pred, **kwargs):
         stages.group = "ramp" if body.name == "ramp" else "legs"
-        return timed(body, pred)
+        return timed(body, pred, **kwargs)
     return grouped
 
 
@@ -373,6 +373,7 @@ def _stage_profile(video: Path, repeats: int = 5) -> dict:
                                 for k, (params, det) in d._roi_detectors.items()}
             d.detect = _grouped_detect(d.detect, stages)
             d.recover = stages.wrap("recovery of missed markers", d.recover)
+            d.follow = stages.wrap("ramp markers followed (refinement, code)", d.follow)
             tracker._predict = stages.wrap("regions of interest", tracker._predict)
             tracker._regions = _grouped_regions(tracker._regions, stages)
             tracker._fit_walker = stages.wrap("joint fit (legs)", tracker._fit_walker)

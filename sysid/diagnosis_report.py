@@ -28,14 +28,19 @@ __all__ = ["numbers_figure", "write_diagnosis", "write_summary_diagnosis"]
 
 def write_diagnosis(diagnosis: Diagnosis, folder: Path, inputs: dict | None = None) -> list[Path]:
     """Write report.json, report.md and the figures into ``folder`` (created if missing)."""
-    folder = Path(folder)
+    return _write_report(Path(folder), diagnosis, inputs, _markdown(diagnosis), lambda f: [
+        _phase_figure(diagnosis, f), _feature_figure(diagnosis, f), _candidate_figure(diagnosis, f)])
+
+
+def _write_report(folder: Path, diagnosis, inputs: dict | None, markdown: str, figures) -> list[Path]:
+    """report.json (strict JSON: NaN, where a gain or an interval was not measured, as null, with
+    the command's ``inputs``), report.md and the figures that ``figures(folder)`` draws."""
     folder.mkdir(parents=True, exist_ok=True)
-    data = diagnosis.to_json()
+    data = strict_json(diagnosis.to_json())
     if inputs:
         data["input"] = inputs
-    written = [_phase_figure(diagnosis, folder), _feature_figure(diagnosis, folder),
-               _candidate_figure(diagnosis, folder)]
-    atomic_write_text(folder / "report.md", _markdown(diagnosis, data))
+    written = figures(folder)
+    atomic_write_text(folder / "report.md", markdown)
     atomic_write_json(folder / "report.json", data)
     return written + [folder / "report.md", folder / "report.json"]
 
@@ -113,7 +118,7 @@ def _candidate_figure(d: Diagnosis, folder: Path) -> Path:
     return _finish(fig, folder / "candidates.png")
 
 
-def _markdown(d: Diagnosis, data: dict) -> str:
+def _markdown(d: Diagnosis) -> str:
     lines = ["# Discrepancy analysis", "",
              f"**Verdict:** {d.verdict}. **Cause:** {d.cause if d.cause is not None else 'none'}"
              + (f" (both: {', '.join(d.causes)})" if len(d.causes) > 1 else "") + ".", "",
@@ -158,15 +163,8 @@ def write_summary_diagnosis(diagnosis, folder: Path, inputs: dict | None = None)
     """The report of :func:`toywalk.sysid.summary.diagnose_summary`: report.json, report.md and
     ``numbers.png`` (each measured number's misfit in SDs: the base model, the best candidate and
     the best pair)."""
-    folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    data = strict_json(diagnosis.to_json())  # NaN (no interval, no dof left) as null
-    if inputs:
-        data["input"] = inputs
-    written = [numbers_figure(diagnosis, folder / "numbers.png")]
-    atomic_write_text(folder / "report.md", _summary_markdown(diagnosis))
-    atomic_write_json(folder / "report.json", data)
-    return written + [folder / "report.md", folder / "report.json"]
+    return _write_report(Path(folder), diagnosis, inputs, _summary_markdown(diagnosis),
+                         lambda f: [numbers_figure(diagnosis, f / "numbers.png")])
 
 
 def _summary_models(d) -> list[tuple[str, object]]:

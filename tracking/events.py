@@ -146,11 +146,11 @@ def isolated_outliers(y, sd: float, *, count: int = 5, threshold: float = 6.0,
     single-marker fit, a blurred marker) is an isolated jump that both sides miss. Flagged if both
     misses exceed ``threshold`` times the extrapolation's SD for white noise ``sd`` (and
     ``floor``, rad: the curvature of the signal over a frame or two); at the ends of the series
-    or of a gap, one side's miss decides. A sample so flagged is kept when a cubic through the
-    (up to) 3 nearest valid samples on each side (interpolation, which follows a smooth turn that no
-    extrapolation does) passes within ``threshold`` times its own SD (and ``floor``): a fast leg
-    reversing within a few frames (a walker filmed at 60 frames/s, 10 frames a step) is not a
-    jump. Uniform sampling assumed.
+    or of a gap, one side's miss decides. A sample so flagged, with no gap within 3 samples, is
+    kept when a cubic through the 3 nearest samples on each side not found wrong (interpolation,
+    which follows a smooth turn that no extrapolation does) passes within ``threshold`` times its
+    own SD (and ``floor``): a fast leg reversing within a few frames (a walker filmed at 60
+    frames/s, 10 frames a step) is not a jump. Uniform sampling assumed.
     """
     y = np.asarray(y, float)
     ok = np.isfinite(y)
@@ -191,10 +191,13 @@ def isolated_outliers(y, sd: float, *, count: int = 5, threshold: float = 6.0,
     # jump also spoils its neighbours' interpolations)
     trusted = ok.copy()
     for i in sorted(np.flatnonzero(out), key=lambda i: -nearest[i]):
+        if not ok[max(i - 3, 0):i + 4].all():
+            continue  # a gap within 3 samples (where blur hides a leg, the samples at a gap's
+            # edge are the least sure): the one-sided verdict stands
         before = _window(trusted, i - 1, -1, -1, 3)
         after = _window(trusted, i + 1, n, 1, 3)
         if not before or not after or len(before) + len(after) < 4:
-            continue  # not enclosed (an end, a gap): the one-sided verdict stands
+            continue  # not enclosed (an end, neighbours found wrong): the one-sided verdict stands
         x = np.array(before + after, float) - i
         a = np.vander(x, 4 if len(x) >= 5 else 3, increasing=True)
         coef = np.linalg.lstsq(a, y[before + after], rcond=None)[0]

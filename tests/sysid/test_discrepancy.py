@@ -5,6 +5,7 @@ import json
 
 import pytest
 from toywalk.model.parameters import load_params
+from toywalk.sysid.diagnosis_report import write_diagnosis
 from toywalk.sysid.discrepancy import candidates, diagnose
 from toywalk.sysid.fit import score_tests
 
@@ -40,7 +41,7 @@ def test_candidates_are_the_library_and_the_held_parameters(toy):
 
 
 @pytest.mark.slow
-def test_the_hidden_effect_is_named_with_an_interval_that_holds_it(hidden):
+def test_the_hidden_effect_is_named_with_an_interval_that_holds_it(hidden, tmp_path):
     table, d = hidden
     assert d.verdict == "discrepancy" and d.cause == "effects.impact_trailing_share", d.evidence
     row = next(r for r in d.ranking if r["effect"] == d.cause)
@@ -52,7 +53,9 @@ def test_the_hidden_effect_is_named_with_an_interval_that_holds_it(hidden):
     # The score test at the base fit and the likelihood ratio of the extended fit are the same
     # statistic to first order: measured 442 against 395 on this walk.
     assert 0.75 < row["score_z"] ** 2 / row["lr"] < 1.33
-    json.dumps(d.to_json())  # the report is JSON
+    # the report is strict JSON: what was not measured is null, not NaN
+    write_diagnosis(d, tmp_path)
+    json.loads((tmp_path / "report.json").read_text(), parse_constant=lambda c: pytest.fail(c))
 
 
 @pytest.mark.slow
