@@ -17,16 +17,20 @@ from .conftest import STABLE_TOY, TOY_SIZED, toywalk
 def test_walker_that_falls(tmp_path, capfd):
     """toy-sized's gait is unstable (max |eigenvalue| 6.0): released at its fixed point it falls
     within 20 steps. The walk until the fall is the result: status 1 (not 2, bad input), the
-    summary line says it fell and where, nothing on stderr, and the trajectory is written whole,
-    its metadata saying it fell."""
+    summary line says how it ended and where, nothing on stderr, and the trajectory is written
+    whole, its metadata saying so. The gait multiplies the start's round-off six-fold a step, so
+    how the collapse ends after ~20 steps depends on the machine's round-off: a hip reaching the
+    ramp (`fell`), or a strike with the legs together, from which no step can start
+    (`no_heel_strike`; seen with other package builds). Either is a physical failure."""
     out = tmp_path / "walk.csv"
     outcome = toywalk(capfd, "simulate", "--params", TOY_SIZED, "--steps", "40", "--out", out)
     assert outcome.code == 1, outcome.err
     assert outcome.err_lines == []
     lines = outcome.out.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("fell: step "), outcome.out
+    assert len(lines) == 1 and lines[0].startswith(("fell: step ", "no_heel_strike: step ")), outcome.out
     walk = read_trajectory(out)  # the three files, whole and readable
-    assert walk.metadata["status"] == "fell" and walk.metadata["message"] in lines[0]
+    assert walk.metadata["status"] in ("fell", "no_heel_strike")
+    assert lines[0].startswith(walk.metadata["status"]) and walk.metadata["message"] in lines[0]
     assert 1 < len(walk.events) < 40 and walk.time[-1] > walk.events[-1]["time"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["walk.csv", "walk.events.csv", "walk.json"]
 
