@@ -454,14 +454,9 @@ class Walker:
                         f"a hip or a centre of mass reached the ramp at t = {(n_done + j + 1) * dt:.4g} s",
                         self._partial(blocks),
                     )
-                if ahead[j] > 0.0 and not (
-                        (ahead[j - 1] if j > 0 else g_prev[1]) <= 0.0
-                        and self._strike_ahead(xs[:, j - 1] if j > 0 else x, h_prev[j], h[j], p)
-                        <= _START_GAP * self.params.leg_length):
+                if ahead[j] > 0.0:
                     j_hit = int(j)
                     break
-                # the swing foot meets the ramp behind the stance foot, or as the legs pass (the
-                # crossing and the passing in one integration step, the crossing first): a scuff
                 scuffs += 1
             if record and x_pass is None:  # do the legs pass in this chunk (or the strike's step)?
                 seen = np.flatnonzero(ahead[: SCAN if j_hit is None else j_hit + 1] > 0.0)
@@ -522,19 +517,6 @@ class Walker:
         if jacobian:
             self._step_jacobian(x0, hit, x_before, tau, x_t, out, params_jacobian, p)
         return out
-
-    def _strike_ahead(self, x_before: np.ndarray, h_before: float, h_after: float, p: np.ndarray) -> float:
-        """How far (m) the swing foot is ahead of the stance foot where it meets the ramp inside the
-        integration step from ``x_before`` (swing-foot heights ``h_before`` > 0 >= ``h_after``), by
-        a few Newton steps on the height: enough to tell a strike from a scuff as the legs pass."""
-        k, dt = self.eng.k, self.dt
-        tau = dt * h_before / (h_before - h_after)
-        for _ in range(_GUARD_MAXIT):
-            g, dh, _ = k["final"](x_before, tau, p)
-            if abs(g[0, 0]) <= _GUARD_TOL * self.params.leg_length or dh[0, 0] == 0.0:
-                break
-            tau = min(max(tau - g[0, 0] / dh[0, 0], 0.0), dt)
-        return float(g[1, 0])
 
     def _passing(self, x_pass: np.ndarray, t_pass: float, ahead_pass: tuple[float, float],
                  p: np.ndarray) -> tuple[float, float, np.ndarray]:
