@@ -473,23 +473,18 @@ class MarkerDetector:
         dict of int to ndarray, shape (4, 2)
             The markers followed: refined corners by id.
         """
-        height, width = image.shape[:2]
         ids, quads, crops = [], [], []
         for marker_id, corners in predicted.items():
             pred = np.asarray(corners, float).reshape(4, 2)
             if not np.all(np.isfinite(pred)):
                 continue
-            pad = max_move + 8.0  # the refinement's widest band, and the motion allowed
-            lo = np.floor(pred.min(axis=0) - pad).astype(int)
-            hi = np.ceil(pred.max(axis=0) + pad).astype(int) + 1
-            if lo[0] < 0 or lo[1] < 0 or hi[0] > width or hi[1] > height:
+            # padded by the refinement's widest band and the motion allowed
+            crop = _crop_around(image, pred, max_move + 8.0)
+            if crop is None:
                 continue
-            crop = image[lo[1]:hi[1], lo[0]:hi[0]]
-            if crop.ndim == 3:
-                crop = cv2.cvtColor(crop, cv2.COLOR_BGR2GRAY)
             ids.append(int(marker_id))
             quads.append(pred)
-            crops.append(_Shifted(crop, lo.astype(float)))
+            crops.append(crop)
         out: dict[int, np.ndarray] = {}
         if not ids:
             return out
@@ -526,16 +521,9 @@ class MarkerDetector:
         pred = np.asarray(corners, float).reshape(4, 2)
         if not np.all(np.isfinite(pred)):
             return None
-        height, width = image.shape[:2]
-        pad = search + 8.0
-        lo = np.floor(pred.min(axis=0) - pad).astype(int)
-        hi = np.ceil(pred.max(axis=0) + pad).astype(int) + 1
-        if lo[0] < 0 or lo[1] < 0 or hi[0] > width or hi[1] > height:
+        gray = _crop_around(image, pred, search + 8.0)
+        if gray is None:
             return None  # too near the frame's edge to measure all four edges
-        crop = image[lo[1]:hi[1], lo[0]:hi[0]]
-        if crop.ndim == 3:
-            crop = cv2.cvtColor(crop, cv2.COLOR_BGR2GRAY)
-        gray = _Shifted(crop, lo.astype(float))
         area = abs(_quad_area(pred))
         step = max(1.5, min(4.0, 0.12 * float(np.mean(np.linalg.norm(np.roll(pred, -1, axis=0) - pred,
                                                                         axis=1)))))
@@ -557,6 +545,20 @@ class MarkerDetector:
                 if marker_matches(gray, quad, self._dictionary, marker_id, max_bit_errors=max_bit_errors):
                     return quad
         return None
+
+
+def _crop_around(image: np.ndarray, quad: np.ndarray, pad: float) -> _Shifted | None:
+    """The grey crop of ``image`` holding ``quad`` (4, 2; pixels) with ``pad`` pixels on every side,
+    as a :class:`_Shifted` sampling in full-frame pixels; None when that box leaves the frame."""
+    height, width = image.shape[:2]
+    lo = np.floor(quad.min(axis=0) - pad).astype(int)
+    hi = np.ceil(quad.max(axis=0) + pad).astype(int) + 1
+    if lo[0] < 0 or lo[1] < 0 or hi[0] > width or hi[1] > height:
+        return None
+    crop = image[lo[1]:hi[1], lo[0]:hi[0]]
+    if crop.ndim == 3:
+        crop = cv2.cvtColor(crop, cv2.COLOR_BGR2GRAY)
+    return _Shifted(crop, lo.astype(float))
 
 
 def _quad_area(c: np.ndarray):

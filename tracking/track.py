@@ -86,6 +86,12 @@ RAMP_CODE_EVERY = 8
 _RAMP_WAIT = 8
 
 
+def _longer_wait(interval: int, longest: int) -> int:
+    """The next wait (frames) before searching again for something still unseen: twice the last,
+    at most ``longest`` (a search that keeps failing costs little, and a return is soon noticed)."""
+    return min(2 * interval, longest)
+
+
 @dataclasses.dataclass
 class _Body:
     name: str
@@ -308,13 +314,11 @@ class Tracker:
                 searched = True
         self.counts["roi_searches"] += searched
         self.counts["ramp_followed"] = self.counts.get("ramp_followed", 0) + len(followed)
-        for i in sought:
-            if self._owner[i] != "ramp":
-                continue
+        for i in sought:  # ramp markers only
             if i in found:
                 self._ramp_wait.pop(i, None)
             else:
-                wait = min(2 * self._ramp_wait.get(i, (0, 1))[1], _RAMP_WAIT)
+                wait = _longer_wait(self._ramp_wait.get(i, (0, 1))[1], _RAMP_WAIT)
                 self._ramp_wait[i] = (frame + wait, wait)
         # bodies predicted but not found in their regions count as lost
         for name, p in preds.items():
@@ -372,7 +376,7 @@ class Tracker:
         if searched_full:
             still_lost = [n for n in lost if n not in poses]
             self._full_interval = (1 if not still_lost
-                                   else min(2 * self._full_interval, self.max_full_search_interval))
+                                   else _longer_wait(self._full_interval, self.max_full_search_interval))
         self.times.append(float(t))
         self.detections.append(found)
         self.counts["frames"] += 1
