@@ -355,7 +355,8 @@ class Tracker:
             found = {**found, **recovered}
             walker, used = self._fit_walker(found, preds)
             self.counts["recovered"] = self.counts.get("recovered", 0) + len(recovered)
-        if walker is not None and "hip_width" in walker.names:
+        if walker is not None and "hip_width" in walker.names and \
+                all(n >= 8 for n in walker.n_points.values()):  # two flags a leg: well determined
             self._width_samples.append(walker.hip_width)
         self.recovered.append(sorted(recovered))
         self.walker.append(walker)
@@ -478,9 +479,12 @@ class Tracker:
         if self._width_in_use[0] != len(self._width_samples):  # the median changes with the samples
             self._width_in_use = (len(self._width_samples), self.hip_width)
         width = self._width_in_use[1]
-        # the hip width is a constant: estimated in the first frames that show it well, then fixed
-        fit_width = self.hip_width_given is None and len(self._width_samples) < _WIDTH_SAMPLES and \
-            len(obs) == 2 and all(len(o[2]) >= 2 for o in obs.values())
+        # the hip width is a constant: estimated in the first frames that show it well (both legs
+        # through two flags each), then fixed; until such a frame, fitted in every frame that
+        # shows both legs (a leg seen through one flag cannot be placed with a wrong width)
+        fit_width = self.hip_width_given is None and len(obs) == 2 and (
+            not self._width_samples
+            or (len(self._width_samples) < _WIDTH_SAMPLES and all(len(o[2]) >= 2 for o in obs.values())))
         data = {f: o[:2] for f, o in obs.items()}
         predicted = {}
         for name, foot in LEGS.items():
@@ -632,7 +636,9 @@ class Tracker:
                            poses={**self.poses, "walker": walker},
                            hip_width=self.hip_width,
                            hip_width_source="given" if self.hip_width_given is not None else
-                           f"estimated: median of {len(self._width_samples)} frames' joint fits",
+                           f"estimated: median of {len(self._width_samples)} frames' joint fits"
+                           if self._width_samples else "not measured (no frame showed both legs "
+                           "through two flags each): fitted in each frame that showed both legs",
                            track_seconds=self.track_seconds)
 
     def _one_marker_pitches(self, time, raw: dict, sd: dict, walker: list, strikes: list) -> None:

@@ -39,14 +39,14 @@ HIDDEN = {"L": 1, "R": 2}  # the left leg's lower flag, the right leg's upper fl
 
 def _hidden(k: int) -> dict:
     """Leg -> the id of its flag hidden in frame ``k`` (none, left, right in turn). The clip starts
-    with both flags seen: hidden from the first frame, compass-3d's and stable-toy's left leg was
-    not acquired at all (measured)."""
+    with both flags seen (:func:`test_a_flag_hidden_from_the_first_frame` starts a stretch later)."""
     phase = (k // STRETCH) % 3
     return {} if phase == 0 else ({"L": HIDDEN["L"]} if phase == 1 else {"R": HIDDEN["R"]})
 
 
-def _render_hidden(folder, params_path, steps: int, seed: int, duration: float):
-    """Simulate, render at level 1 with the flags of :func:`_hidden` painted over, track:
+def _render_hidden(folder, params_path, steps: int, seed: int, duration: float, shift: int = 0):
+    """Simulate, render at level 1 with the flags of :func:`_hidden` (of frame k + ``shift``)
+    painted over, track:
     (TrackResult, true angles (n, 4), markers seen per leg {foot: (n,)}, hidden {foot: (n,) bool},
     the camera)."""
     r = subprocess.run([TOYWALK, "simulate", "--params", str(params_path), "--steps", str(steps),
@@ -63,7 +63,7 @@ def _render_hidden(folder, params_path, steps: int, seed: int, duration: float):
     def cover(canvas):  # Filming.frame's lens step, then the cover, then its noise and flicker
         image = finish(canvas)
         t = float(film.times[current[0]])
-        for foot, i in _hidden(current[0]).items():
+        for foot, i in _hidden(current[0] + shift).items():
             m = markers[i]
             outline = [project(camera, marker_corners(m, 1.2 * m.margin),
                                cv2.Rodrigues(scene.body_poses(film.motion.state(t + dt))[foot][0])[0],
@@ -85,7 +85,7 @@ def _render_hidden(folder, params_path, steps: int, seed: int, duration: float):
     result, _ = track_video(folder / "v.mp4", camera, layout, one_marker_smoothing=True)
     walker = result.poses["walker"]
     seen = {f: np.array([0 if w is None else w.n_points.get(f, 0) // 4 for w in walker]) for f in "LR"}
-    hidden = {f: np.array([f in _hidden(k) for k in range(len(film))]) for f in "LR"}
+    hidden = {f: np.array([f in _hidden(k + shift) for k in range(len(film))]) for f in "LR"}
     return result, np.array(truth), seen, hidden, camera
 
 
@@ -145,3 +145,26 @@ def test_one_flag_hidden_meets_the_targets(tmp_path, walker, steps, seed, durati
     # the counts say how many frames rested on one flag (at least the hidden ones tracked)
     for foot in "LR":
         assert result.counts[f"one_marker_{foot}"] >= int(np.sum(hidden[foot] & (seen[foot] == 1)))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("walker", "steps", "seed"), [("compass-3d", 3, 2), ("stable-toy", 13, 2)])
+def test_a_flag_hidden_from_the_first_frame(tmp_path, walker, steps, seed):
+    """The left leg's lower flag hidden from the first frame (then the right leg's upper flag,
+    then neither): each leg is taken up through its other flag at once, before any frame has
+    shown both legs through two flags each, so before the hip width is known. Without fitting
+    the width in those frames (it stood at 0 m, compass-3d's is 0.1 m) the one-flag leg's fit was
+    2.2-3.9 px RMS and its flag was dropped as a wrong marker: the left leg went unfound until its
+    second flag showed (both walkers), and compass-3d's right leg was then lost for its own hidden
+    stretch too."""
+    result, truth, seen, hidden, camera = _render_hidden(tmp_path, DATA / "params" / f"{walker}.toml",
+                                                         steps, seed, 1.0, shift=STRETCH)
+    assert hidden["L"][0] and hidden["R"][STRETCH]
+    for foot in "LR":
+        # every hidden frame tracked through the other flag (a frame or two next to a strike may
+        # lose that one too, to blur)
+        assert np.sum(hidden[foot] & (seen[foot] == 1)) >= hidden[foot].sum() - 2, (foot, seen[foot])
+    assert result.hip_width_source.startswith("estimated: median of")
+    if walker == "compass-3d":  # stable-toy's accuracy with a flag hidden is the xfail above
+        _check(result, truth, seen, hidden, camera, walker)
+        assert abs(result.hip_width - 0.1) < 1e-3  # m (data/params/compass-3d.toml)
