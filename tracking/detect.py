@@ -203,6 +203,9 @@ def _refine(gray, corners: np.ndarray, camera, samples: int, iterations: int, *,
         p0 = rows[line, j.ravel() - 1].reshape(j.shape)
         with np.errstate(divide="ignore", invalid="ignore"):
             f = (level - p0) / (p1 - p0)
+        # no crossing (0/0), or a profile level where it should step (x/0): not finite either way,
+        # and NaN rather than inf, which would warn when multiplied by a zero normal component
+        f[~np.isfinite(f)] = np.nan
         start = steps[np.arange(len(act))[:, None, None], j - 1]
         offset = start + f * (steps[:, 1] - steps[:, 0])[:, None, None]
         edge = base + offset[..., None] * normal[:, :, None, :]  # (A, 4, S, 2)

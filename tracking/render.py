@@ -50,8 +50,8 @@ import numpy as np
 from toywalk.model.files import software_version as _version
 from toywalk.model.kinematics import lowest_point
 
-from .camera import Camera
-from .markers import MarkerLayout, default_layout
+from .camera import Camera, project
+from .markers import MarkerLayout, default_layout, marker_corners
 from .scene import CameraPath, Scene, WalkerState, default_view
 
 __all__ = ["BLUR_STEP_PX", "NOISE_LEVELS", "Filming", "Motion", "RenderError", "RenderOptions",
@@ -407,6 +407,10 @@ def shoot_times(motion: Motion, options: RenderOptions) -> np.ndarray:
     return t0 + np.arange(n) / options.fps
 
 
+#: Marker bodies (markers.BODIES) by their key in Scene.body_poses
+_BODY_KEY = {"left_leg": "L", "right_leg": "R", "ramp": "ramp"}
+
+
 class Filming:
     """A prepared shoot: the scene, the frame times and the imperfection schedule (gains,
     occluders), drawn from ``rng`` in a fixed order so that a seed reproduces every frame.
@@ -415,6 +419,9 @@ class Filming:
     ----------
     table, params, camera, layout, options, rng, path
         As for :func:`render`.
+    hidden : callable, optional
+        Frame index -> ids of the markers painted over in that frame (:meth:`_cover`): a flag
+        hidden by the other leg, say.
 
     Attributes
     ----------
@@ -429,7 +436,7 @@ class Filming:
     """
 
     def __init__(self, table, params, camera: Camera, layout: MarkerLayout, options: RenderOptions,
-                 rng=None, path: CameraPath | None = None):
+                 rng=None, path: CameraPath | None = None, hidden=None):
         if not isinstance(options, RenderOptions):
             raise TypeError(f"options must be RenderOptions, got {type(options).__name__}")
         if path is not None and not isinstance(path, CameraPath):
@@ -453,6 +460,8 @@ class Filming:
         self.subframes = np.zeros(n, dtype=int)  # renders averaged in each frame drawn (0: not yet)
         self._acc = np.empty((*self.scene.background.shape[:2], 3), np.float32)
         self._noise = np.empty((camera.height, camera.width, 3), np.float32)
+        self.hidden = hidden
+        self._markers = {m.id: m for m in layout.markers}
 
     def __len__(self) -> int:
         return len(self.times)
@@ -475,6 +484,8 @@ class Filming:
                 cv2.accumulate(scene.draw(motion.state(t + dt)), acc)
             canvas = cv2.convertScaleAbs(acc, alpha=1.0 / len(offsets))  # >= 0: rounds, saturates
         frame = scene.finish(canvas)
+        if self.hidden is not None:
+            self._cover(frame, k)
         for ev in self.occluders:
             if ev[0] <= k < ev[0] + ev[1]:
                 draw_occluder(frame, ev, k)
@@ -491,6 +502,29 @@ class Filming:
             _, buf = cv2.imencode(".jpg", frame, [cv2.IMWRITE_JPEG_QUALITY, options.jpeg_quality])
             frame = cv2.imdecode(buf, cv2.IMREAD_COLOR)
         return frame
+
+    def _cover(self, frame: np.ndarray, k: int) -> None:
+        """Paint over the markers ``hidden(k)`` names in frame ``k``, in place: a grey
+        quadrilateral over each whole flag (its white margin too) wherever it is while the shutter
+        is open, as another body in front of it would hide it (before the sensor's noise), so that
+        the tracker neither decodes nor recovers it."""
+        ids = [int(i) for i in self.hidden(k)]
+        if not ids:
+            return
+        t = float(self.times[k])
+        half = 0.5 * self.options.exposure / self.options.fps
+        for i in ids:
+            if i not in self._markers:
+                raise RenderError(f"hidden marker id {i} is not in the layout")
+            marker = self._markers[i]
+            outline = []
+            for dt in (-half, 0.0, half):
+                self._place(t + dt)
+                rot, tvec = self.scene.body_poses(self.motion.state(t + dt))[_BODY_KEY[marker.body]]
+                outline.append(project(self.scene.camera, marker_corners(marker, 1.2 * marker.margin),
+                                       cv2.Rodrigues(rot)[0], tvec))
+            hull = cv2.convexHull(np.round(np.concatenate(outline) * 16).astype(np.int32))
+            cv2.fillConvexPoly(frame, hull, (90, 90, 90), cv2.LINE_AA, 4)
 
     def _place(self, t: float) -> None:
         """Put a moving camera where it is at time ``t`` (s)."""

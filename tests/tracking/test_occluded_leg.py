@@ -23,8 +23,7 @@ import pytest
 from toywalk.model.parameters import load_params
 from toywalk.model.trajectory import read_trajectory
 from toywalk.tracking.angles import walker_angles
-from toywalk.tracking.camera import project
-from toywalk.tracking.markers import default_layout, marker_corners
+from toywalk.tracking.markers import default_layout
 from toywalk.tracking.render import Filming, RenderOptions
 from toywalk.tracking.scene import default_camera_for
 from toywalk.tracking.track import track_video
@@ -55,30 +54,12 @@ def _render_hidden(folder, params_path, steps: int, seed: int, duration: float, 
     params = load_params(params_path)
     camera, layout = default_camera_for(params), default_layout(params)
     film = Filming(read_trajectory(folder / "walk.csv"), params, camera, layout,
-                   RenderOptions.preset(1, duration=duration), seed)
-    markers = {m.id: m for m in layout.markers}
-    half = 0.5 * film.options.exposure / film.options.fps
-    scene, finish, current = film.scene, film.scene.finish, [0]
-
-    def cover(canvas):  # Filming.frame's lens step, then the cover, then its noise and flicker
-        image = finish(canvas)
-        t = float(film.times[current[0]])
-        for foot, i in _hidden(current[0] + shift).items():
-            m = markers[i]
-            outline = [project(camera, marker_corners(m, 1.2 * m.margin),
-                               cv2.Rodrigues(scene.body_poses(film.motion.state(t + dt))[foot][0])[0],
-                               scene.body_poses(film.motion.state(t + dt))[foot][1])
-                       for dt in (-half, 0.0, half)]
-            hull = cv2.convexHull(np.round(np.concatenate(outline) * 16).astype(np.int32))
-            cv2.fillConvexPoly(image, hull, (90, 90, 90), cv2.LINE_AA, 4)
-        return image
-
-    scene.finish = cover
+                   RenderOptions.preset(1, duration=duration), seed,
+                   hidden=lambda k: _hidden(k + shift).values())
     writer = cv2.VideoWriter(str(folder / "v.mp4"), cv2.VideoWriter_fourcc(*"mp4v"), film.options.fps,
                              camera.size)
     truth = []
     for k in range(len(film)):
-        current[0] = k
         writer.write(film.frame(k))
         truth.append(film.truth(k)[0])
     writer.release()
