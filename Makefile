@@ -23,6 +23,7 @@ test: $(STAMP)
 bench: $(STAMP)
 	$(PY) benchmarks/run_all.py
 	$(PY) benchmarks/track_accuracy.py
+	$(PY) benchmarks/marker_layouts.py
 	$(PY) benchmarks/sample_speed.py
 	$(PY) benchmarks/diagnose_speed.py
 

@@ -9,10 +9,11 @@ Filmed from one side, the near leg hides the far leg's flags for stretches of ev
 each shipped walker (compass-3d, toy-sized and stable-toy, data/params) and each layout
 
 - ``default``: two flags a leg (:func:`toywalk.tracking.markers.default_layout`);
-- ``third``: the default two and a third flag a leg beside the upper one, further outboard,
-  turned 60 degrees towards the camera instead of 25 (so not parallel to either other flag);
+- ``third``: the default two and a third flag a leg on a mast 0.2 leg lengths above the hip
+  (there is no room between the two nor below them, above the foot), turned 60 degrees towards
+  the camera instead of 25 (so not parallel to either other flag);
 
-it simulates 2 s of walking, renders it at noise level 1 (60 frames/s, the render's own seed)
+it simulates 2 s of walking, renders it at noise level 1 (60 frames/s, seeds 100-102)
 with flags painted over in three patterns
 
 - ``none``: nothing hidden;
@@ -23,7 +24,7 @@ with flags painted over in three patterns
 tracks it with the render's camera and layout (no smoothing across frames: each frame's own
 joint fit), and reports for each leg, over the frames in which one of its flags is hidden (all
 frames for ``none``): frames tracked, RMS error of lean, steer and the leg's pitch (deg) and the
-RMS of error over stated SD. Writes ``benchmarks/results/marker_layouts.json`` atomically. About 5
+RMS of error over stated SD. Writes ``benchmarks/results/marker_layouts.json`` atomically. About 4
 minutes on an idle 2-core machine.
 """
 
@@ -70,11 +71,11 @@ def _layouts(params) -> dict:
     third = list(legs)
     turn = math.radians(60.0)
     for m in legs:
-        if m.id not in (0, 2):  # beside each leg's upper flag
+        if m.id not in (0, 2):  # one a leg, above the hip, at the upper flag's size and offsets
             continue
         flag = m.side + 2 * m.margin
         normal = np.array([math.cos(turn), -math.sin(turn), 0.0])  # towards a camera on the right
-        centre = np.array([2 * rod + 0.5 * flag * math.sin(turn), outboard(m) * 1.9 * flag, m.tvec[2]])
+        centre = np.array([2 * rod + 0.5 * flag * math.sin(turn), outboard(m) * 0.75 * flag, 0.2 * ell])
         rvec, tvec = _leg_flag(normal, [0.0, 0.0, 1.0], centre)
         third.append(Marker(id=m.id + 4, body=m.body, side=m.side, rvec=rvec, tvec=tvec, margin=m.margin,
                             name=f"{m.body.split('_')[0]} third flag"))
