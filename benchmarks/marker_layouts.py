@@ -11,7 +11,8 @@ each shipped walker (compass-3d, toy-sized and stable-toy, data/params) and each
 - ``default``: two flags a leg (:func:`toywalk.tracking.markers.default_layout`);
 - ``third``: the default two and a third flag a leg on a mast 0.2 leg lengths above the hip
   (there is no room between the two nor below them, above the foot), turned 60 degrees towards
-  the camera instead of 25 (so not parallel to either other flag);
+  the camera instead of 25 (so not parallel to either other flag): ``default_layout(params,
+  third_flag=True)``;
 
 it simulates 2 s of walking, renders it at noise level 1 (60 frames/s, seeds 100-102)
 with flags painted over in three patterns
@@ -31,7 +32,6 @@ minutes on an idle 2-core machine.
 from __future__ import annotations
 
 import argparse
-import math
 import subprocess
 import sys
 import tempfile
@@ -56,32 +56,10 @@ PATTERNS = {
 
 
 def _layouts(params) -> dict:
-    """The layouts compared, from the bundled one (see the module docstring)."""
-    from toywalk.tracking.markers import Marker, MarkerLayout, _leg_flag, default_layout
+    """The layouts compared (see the module docstring)."""
+    from toywalk.tracking.markers import default_layout
 
-    base = default_layout(params)
-    ell = float(params.leg_length)
-    rod = 0.025 * ell  # default_layout's rod radius
-    legs = [m for m in base.markers if m.body != "ramp"]
-    ramp = [m for m in base.markers if m.body == "ramp"]
-
-    def outboard(m):  # +1 left leg, -1 right leg
-        return 1.0 if m.body == "left_leg" else -1.0
-
-    third = list(legs)
-    turn = math.radians(60.0)
-    for m in legs:
-        if m.id not in (0, 2):  # one a leg, above the hip, at the upper flag's size and offsets
-            continue
-        flag = m.side + 2 * m.margin
-        normal = np.array([math.cos(turn), -math.sin(turn), 0.0])  # towards a camera on the right
-        centre = np.array([2 * rod + 0.5 * flag * math.sin(turn), outboard(m) * 0.75 * flag, 0.2 * ell])
-        rvec, tvec = _leg_flag(normal, [0.0, 0.0, 1.0], centre)
-        third.append(Marker(id=m.id + 4, body=m.body, side=m.side, rvec=rvec, tvec=tvec, margin=m.margin,
-                            name=f"{m.body.split('_')[0]} third flag"))
-    return {name: MarkerLayout(dictionary=base.dictionary, markers=tuple(markers + ramp),
-                               description=f"{name}: {base.description}")
-            for name, markers in (("default", legs), ("third", third))}
+    return {"default": default_layout(params), "third": default_layout(params, third_flag=True)}
 
 
 def _case(table, params, layout, pattern, seed: int, folder: Path) -> dict:

@@ -288,7 +288,7 @@ def _leg_flag(normal, up, centre) -> tuple[np.ndarray, np.ndarray]:
 
 
 def default_layout(params, camera_side: str = "right", dictionary: str | None = None,
-                   reach: float | None = None) -> MarkerLayout:
+                   reach: float | None = None, third_flag: bool = False) -> MarkerLayout:
     """The bundled marker layout, scaled from the walker's parameters.
 
     Each leg carries two flags (ids 0, 1 on the left leg, 2, 3 on the right leg) mounted in front of
@@ -315,6 +315,12 @@ def default_layout(params, camera_side: str = "right", dictionary: str | None = 
         (the 4x4 dictionaries share their first markers, so ids 0-49 look the same in each).
     reach : float, optional
         How far down the ramp (m, ramp x) the ramp markers must reach; at least 2.3 l.
+    third_flag : bool
+        Add a third flag to each leg (ids 4 left, 5 right), of the same size, on a mast 0.2 l
+        above the hip, upright and turned 60 degrees towards the camera's side: a leg then keeps
+        two flags far apart and not parallel whichever one the other leg hides (measured in
+        benchmarks/TRACKING.md, "Marker layouts": with flags hidden, pitch errors 4-10 times
+        smaller for compass-3d, 0.03-0.16 degree for the toy-sized walker).
     """
     if camera_side not in ("right", "left"):
         raise LayoutError(f"camera_side must be 'right' or 'left', got {camera_side!r}")
@@ -337,6 +343,14 @@ def default_layout(params, camera_side: str = "right", dictionary: str | None = 
             rvec, tvec = _leg_flag(normal, [0.0, 0.0, 1.0], centre)
             markers.append(Marker(id=2 * k + j, body=leg, side=side, rvec=rvec, tvec=tvec, margin=margin,
                                   name=f"{leg.split('_')[0]} {'upper' if j == 0 else 'lower'} flag"))
+    if third_flag:
+        turn3 = math.radians(60.0)
+        normal = np.array([math.cos(turn3), towards * math.sin(turn3), 0.0])
+        for k, (leg, outboard) in enumerate((("left_leg", 1.0), ("right_leg", -1.0))):
+            centre = np.array([2 * rod + 0.5 * flag * math.sin(turn3), outboard * out, 0.2 * ell])
+            rvec, tvec = _leg_flag(normal, [0.0, 0.0, 1.0], centre)
+            markers.append(Marker(id=4 + k, body=leg, side=side, rvec=rvec, tvec=tvec, margin=margin,
+                                  name=f"{leg.split('_')[0]} third flag (above the hip)"))
     ramp_side = 0.2 * ell
     y_mid = -0.5 * w
     rows = (y_mid + 0.75 * ell + 0.5 * w, y_mid - 0.75 * ell - 0.5 * w)
@@ -353,6 +367,7 @@ def default_layout(params, camera_side: str = "right", dictionary: str | None = 
                                   tvec=np.array([x, y, 0.0]), margin=ramp_side / 4,
                                   name=f"ramp {'left' if row == 0 else 'right'} row"))
             mid += 1
-    description = (f"default layout for a walker with leg_length {ell:g} m, hip_width {w:g} m, camera "
-                   f"on the {camera_side} (toywalk.tracking.markers.default_layout)")
+    description = (f"default layout{' with a third flag a leg' if third_flag else ''} for a walker with "
+                   f"leg_length {ell:g} m, hip_width {w:g} m, camera on the {camera_side} "
+                   "(toywalk.tracking.markers.default_layout)")
     return MarkerLayout(dictionary=dictionary, markers=tuple(markers), description=description)

@@ -62,6 +62,28 @@ def test_default_layout_covers_legs_and_ramp(toy_params):
         assert all(np.all(p[:, 2] == 0) for p in pts.values())  # flat on the ramp
 
 
+def test_a_third_flag_a_leg(toy_params, tmp_path):
+    """default_layout(third_flag=True): the default markers unchanged, and one more flag a leg
+    (ids 4 left, 5 right) on a mast 0.2 l above the hip, facing forward and turned further
+    towards the camera's side (for a camera on the right, -y) than either other flag, so parallel
+    to neither; it survives the file round trip."""
+    two, three = default_layout(toy_params), default_layout(toy_params, third_flag=True)
+    extra = [m for m in three.markers if m.id not in {n.id for n in two.markers}]
+    assert [(m.id, m.body) for m in extra] == [(4, "left_leg"), (5, "right_leg")]
+    for a in two.markers:
+        b = next(m for m in three.markers if m.id == a.id)
+        assert_allclose(marker_corners(a), marker_corners(b), rtol=0, atol=0)
+    for m in extra:
+        assert m.tvec[2] == pytest.approx(0.2 * toy_params.leg_length)
+        face = cv2.Rodrigues(m.rvec)[0][:, 2]
+        assert face[0] > 0.4 and face[1] < -0.8  # 60 degrees towards a camera on the right
+        for other in three.on(m.body):
+            if other.id != m.id:
+                assert abs(face @ cv2.Rodrigues(other.rvec)[0][:, 2]) < 0.95  # not parallel
+    save_layout(three, tmp_path / "m.json")
+    assert [m.id for m in load_layout(tmp_path / "m.json").markers] == [m.id for m in three.markers]
+
+
 def test_bundled_layout_is_the_default_for_the_bundled_walker():
     params = load_params(DATA / "params" / "compass-3d.toml")
     bundled = load_layout(DATA / "markers" / "default.json")

@@ -43,19 +43,21 @@ def _hidden(k: int) -> dict:
     return {} if phase == 0 else ({"L": HIDDEN["L"]} if phase == 1 else {"R": HIDDEN["R"]})
 
 
-def _render_hidden(folder, params_path, steps: int, seed: int, duration: float, shift: int = 0):
-    """Simulate, render at level 1 with the flags of :func:`_hidden` (of frame k + ``shift``)
-    painted over, track:
+def _render_hidden(folder, params_path, steps: int, seed: int, duration: float, shift: int = 0,
+                   hidden_in=None, third_flag: bool = False):
+    """Simulate, render at level 1 with the flags of :func:`_hidden` (of frame k + ``shift``; or
+    of ``hidden_in``, a function of the same shape) painted over, track:
     (TrackResult, true angles (n, 4), markers seen per leg {foot: (n,)}, hidden {foot: (n,) bool},
     the camera)."""
     r = subprocess.run([TOYWALK, "simulate", "--params", str(params_path), "--steps", str(steps),
                         "--out", str(folder / "walk.csv")], capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
     params = load_params(params_path)
-    camera, layout = default_camera_for(params), default_layout(params)
+    camera, layout = default_camera_for(params), default_layout(params, third_flag=third_flag)
+    schedule = hidden_in or (lambda k: _hidden(k + shift))
     film = Filming(read_trajectory(folder / "walk.csv"), params, camera, layout,
                    RenderOptions.preset(1, duration=duration), seed,
-                   hidden=lambda k: _hidden(k + shift).values())
+                   hidden=lambda k: schedule(k).values())
     writer = cv2.VideoWriter(str(folder / "v.mp4"), cv2.VideoWriter_fourcc(*"mp4v"), film.options.fps,
                              camera.size)
     truth = []
@@ -66,7 +68,7 @@ def _render_hidden(folder, params_path, steps: int, seed: int, duration: float, 
     result, _ = track_video(folder / "v.mp4", camera, layout, one_marker_smoothing=True)
     walker = result.poses["walker"]
     seen = {f: np.array([0 if w is None else w.n_points.get(f, 0) // 4 for w in walker]) for f in "LR"}
-    hidden = {f: np.array([f in _hidden(k + shift) for k in range(len(film))]) for f in "LR"}
+    hidden = {f: np.array([f in schedule(k) for k in range(len(film))]) for f in "LR"}
     return result, np.array(truth), seen, hidden, camera
 
 
@@ -149,3 +151,35 @@ def test_a_flag_hidden_from_the_first_frame(tmp_path, walker, steps, seed):
     if walker == "compass-3d":  # stable-toy's accuracy with a flag hidden is the xfail above
         _check(result, truth, seen, hidden, camera, walker)
         assert abs(result.hip_width - 0.1) < 1e-3  # m (data/params/compass-3d.toml)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("walker", "steps", "seed"), [("compass-3d", 3, 2), ("toy-sized", 3, 1)])
+def test_a_third_flag_keeps_both_legs_within_the_targets(tmp_path, walker, steps, seed):
+    """Both legs' flags hidden at once (the left leg's lower, the right leg's upper) for 12 frames
+    of every 24, with the layout's third flag a leg (above the hip, turned to the camera): each
+    leg still shows two flags, and its lean, steer and pitch stay within half the targets in
+    those frames, with honest SDs. On these clips the two-flag layout gives compass-3d steer 0.36
+    and lean 0.12, the toy-sized walker pitch 0.24 and 0.20 degree (both within the targets, not
+    within half: 2-s clips in benchmarks/TRACKING.md, "Marker layouts", reach 0.35); with the third
+    flag at most 0.05, 0.03, 0.10 and 0.10. Each frame's own fit: nothing smoothed across frames."""
+    def both(k):
+        return dict(HIDDEN) if (k // STRETCH) % 2 else {}
+
+    result, truth, seen, hidden, camera = _render_hidden(
+        tmp_path, DATA / "params" / f"{walker}.toml", steps, seed, 1.0, hidden_in=both, third_flag=True)
+    for foot, pitch in (("L", "pitch_left"), ("R", "pitch_right")):
+        mask = hidden[foot]
+        assert np.all(seen[foot][mask] <= 2) and mask.sum() >= 24
+        for name in ("lean", "steer", pitch):
+            err = np.degrees(result.raw[name] - truth[:, SIGNALS.index(name)])[mask]
+            ok = np.isfinite(err)
+            assert (~ok).sum() <= 2, (walker, foot, name)  # a frame or two at a strike, to blur
+            rms = np.sqrt(np.mean(err[ok] ** 2))
+            # half the targets (issue 4: pitch and lean 0.3 degree, steer 0.5): measured here
+            # 0.016-0.097; on the 2-s clips of benchmarks/marker_layouts.py, both legs' flags
+            # hidden, 0.012-0.064 (with one leg's flag hidden up to 0.157, the toy-sized walker's
+            # far leg, which this pattern does not test)
+            assert rms <= (0.25 if name == "steer" else 0.15), (walker, foot, name, rms)
+            z = np.sqrt(np.mean((err[ok] / np.degrees(result.raw_sd[name][mask][ok])) ** 2))
+            assert 0.5 < z < 2.0, (walker, foot, name, z)  # the SDs cover the errors (issue 14)
