@@ -213,3 +213,36 @@ def test_track_refuses_a_camera_file_placed_elsewhere(stable_walk, tmp_path):
     assert len(r.stderr.strip().splitlines()) == 1
     assert "ramp_pose disagrees with the ramp markers" in r.stderr and "every lean by -0.6" in r.stderr
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.slow
+def test_a_long_walk_tracked_from_a_following_camera_meets_the_targets(tmp_path):
+    """The issue's second walk: 16 steps of data/params/toy-sized.toml (simulate seed 5, 1.37 m of
+    travel; render seed 77), which leaves any fixed view, so render's default camera follows the
+    walker (358 frames, about 70 s to render). Tracked as the README says, without --camera:
+    each frame's own ramp pose from the markers, every frame but one tracked (frame 17, near a
+    strike, is a gap), and the targets met (measured: lean 0.042, steer 0.063, pitches 0.140 and 0.053 deg RMS; the 15
+    strikes inside the clip at 0.05 frame RMS)."""
+    params = DATA / "params" / "toy-sized.toml"
+    for args in (("simulate", "--params", params, "--steps", 16, "--seed", 5, "--out", tmp_path / "T.csv"),
+                 ("render", tmp_path / "T.csv", "--params", params, "--noise", 1, "--seed", 77,
+                  "--out", tmp_path / "V.mp4")):
+        r = _run(*args)
+        assert r.returncode == 0, r.stderr
+    assert "camera following the walker" in r.stdout
+    r = _run("track", tmp_path / "V.mp4", "--out", tmp_path / "M.csv")
+    assert r.returncode == 0, r.stderr
+    meta = json.loads((tmp_path / "M.json").read_text())
+    assert meta["ramp_pose"]["source"].startswith("ramp markers, each frame's own pose in 358 of 358")
+    assert meta["camera"]["use"] == "bundled default: intrinsics only"
+    tracked, truth = read_trajectory(tmp_path / "M.csv"), read_trajectory(tmp_path / "V.truth.csv")
+    for name in NAMES:
+        err = np.degrees(tracked.signals[name] - truth.signals[name])
+        assert np.isfinite(err).sum() >= len(err) - 2, name  # measured: one gap (frame 17)
+        # the issue's targets (issue 4): lean and pitch 0.3 deg, steer 0.5
+        assert np.sqrt(np.nanmean(err**2)) <= (0.5 if name == "steer" else 0.3), name
+    dt = float(np.median(np.diff(truth.time)))
+    true = [e for e in truth.events if truth.time[0] + 3 * dt < e["time"] < truth.time[-1] - 3 * dt]
+    assert len(true) == 15 and [e["foot"] for e in tracked.events] == [e["foot"] for e in true]
+    errors = np.array([e["time"] - s["time"] for e, s in zip(tracked.events, true, strict=True)])
+    assert np.sqrt(np.mean(errors**2)) / dt <= 0.25  # a quarter frame
