@@ -166,13 +166,21 @@ def stable_walk(tmp_path_factory):
     """The issue's walk: 16 steps of data/params/stable-toy.toml (seed 917), rendered at noise
     level 1 (seed 4411) by the default camera, which frames the whole walk (1.7 s, 103 frames)."""
     folder = tmp_path_factory.mktemp("stable16")
-    params = DATA / "params" / "stable-toy.toml"
-    for args in (("simulate", "--params", params, "--steps", 16, "--seed", 917, "--out", folder / "T.csv"),
-                 ("render", folder / "T.csv", "--params", params, "--noise", 1, "--seed", 4411,
+    _walk_and_film(folder, "stable-toy", 917, 4411)
+    return folder
+
+
+def _walk_and_film(folder, walker: str, walk_seed: int, render_seed: int) -> str:
+    """``simulate`` 16 steps of data/params/WALKER.toml and ``render`` them at noise level 1 with the
+    default camera into FOLDER/T.csv and FOLDER/V.mp4; render's summary line."""
+    params = DATA / "params" / f"{walker}.toml"
+    for args in (("simulate", "--params", params, "--steps", 16, "--seed", walk_seed,
+                  "--out", folder / "T.csv"),
+                 ("render", folder / "T.csv", "--params", params, "--noise", 1, "--seed", render_seed,
                   "--out", folder / "V.mp4")):
         r = _run(*args)
         assert r.returncode == 0, r.stderr
-    return folder
+    return r.stdout
 
 
 @pytest.mark.slow
@@ -221,15 +229,9 @@ def test_a_long_walk_tracked_from_a_following_camera_meets_the_targets(tmp_path)
     travel; render seed 77), which leaves any fixed view, so render's default camera follows the
     walker (358 frames, about 70 s to render). Tracked as the README says, without --camera:
     each frame's own ramp pose from the markers, every frame but one tracked (frame 17, near a
-    strike, is a gap), and the targets met (measured: lean 0.042, steer 0.063, pitches 0.140 and 0.053 deg RMS; the 15
-    strikes inside the clip at 0.05 frame RMS)."""
-    params = DATA / "params" / "toy-sized.toml"
-    for args in (("simulate", "--params", params, "--steps", 16, "--seed", 5, "--out", tmp_path / "T.csv"),
-                 ("render", tmp_path / "T.csv", "--params", params, "--noise", 1, "--seed", 77,
-                  "--out", tmp_path / "V.mp4")):
-        r = _run(*args)
-        assert r.returncode == 0, r.stderr
-    assert "camera following the walker" in r.stdout
+    strike, is a gap), and the targets met (measured: lean 0.042, steer 0.063, pitches 0.140 and
+    0.053 deg RMS; the 15 strikes inside the clip at 0.05 frame RMS)."""
+    assert "camera following the walker" in _walk_and_film(tmp_path, "toy-sized", 5, 77)
     r = _run("track", tmp_path / "V.mp4", "--out", tmp_path / "M.csv")
     assert r.returncode == 0, r.stderr
     meta = json.loads((tmp_path / "M.json").read_text())
