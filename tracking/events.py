@@ -381,6 +381,9 @@ def heel_strikes(time, pitch_left, pitch_right, *, half_window: int = 5, min_z: 
     # A collision changes the rates by about as much at every step; noise kinks are far smaller.
     size = np.array([np.hypot(*c[2]) for c in candidates])
     reference = np.median(np.sort(size)[len(size) // 2:])
+    # gaps a strike inside is not timed: (start, end) times of the samples either side
+    long_gaps = [(t[a], t[b]) for a, b in zip(valid[:-1], valid[1:], strict=True) if b - a > max_gap + 1]
+    near = 1.5 * float(np.median(np.diff(t)))  # s: a kink this near a long gap may be its edge
     events: list[HeelStrike] = []
     kinks = []  # per event: (striking leg, other leg) rate jumps in standard errors
     for (k, tau, rate_jumps, tau_sd), jump_size in zip(candidates, size, strict=True):
@@ -394,7 +397,7 @@ def heel_strikes(time, pitch_left, pitch_right, *, half_window: int = 5, min_z: 
         if 0 < j < len(valid) and valid[j] - valid[j - 1] > 1:
             tau_sd = float(np.hypot(tau_sd, (t[valid[j]] - t[valid[j - 1]]) / np.sqrt(12.0)))
         else:
-            tau_sd = float(np.hypot(tau_sd, _beside_a_long_gap(t, valid, tau, max_gap)))
+            tau_sd = float(np.hypot(tau_sd, _beside_a_long_gap(tau, long_gaps, near)))
         if not abs(spread) >= min_spread:
             continue
         foot = "R" if spread > 0 else "L"  # the leading leg has the smaller pitch
@@ -403,35 +406,31 @@ def heel_strikes(time, pitch_left, pitch_right, *, half_window: int = 5, min_z: 
                                  time_sd=tau_sd))
         kinks.append(leg_z[k, ::-1] if foot == "R" else leg_z[k])
     events = _like_the_others(events, kinks)
-    long_gaps = [(t[a], t[b]) for a, b in zip(valid[:-1], valid[1:], strict=True) if b - a > max_gap + 1]
     events = _alternating(events, long_gaps)
     if half_window < longest:  # fast steps: too few samples a side for a local fit
         events = _periodic_refine(t, pl, pr, ok, events, sd)
     return events
 
 
-def _beside_a_long_gap(t, valid, tau: float, max_gap: int, near: float = 1.5) -> float:
-    """The time uncertainty (s) a kink at ``tau`` gains from a gap longer than ``max_gap`` within
-    ``near`` frames of it: the gap's span over sqrt(12), or 0.
+def _beside_a_long_gap(tau: float, long_gaps, near: float) -> float:
+    """The time uncertainty (s) a kink at ``tau`` (s) gains from a gap longer than ``max_gap``
+    (``long_gaps``: (start, end) times of the samples either side) within ``near`` seconds of
+    it: the span from the kink to the gap's far end over sqrt(12), or 0.
 
     Blur hides the fast legs around a heel strike, and the frames at a blurred gap's edge are the
     most blurred of those seen: their bias bends the signals there. A kink at such an edge may be
     that bend while the strike lies inside the gap, where no kink is timed (the toy's level-3 and
     blur-only benchmark videos gave kinks 1.9-4.7 frames from the truth with SDs of 0.05-0.11
     frame), so its time is known only to lie somewhere from the kink to the gap's far end.
-    ``valid``: indices of the samples seen, ascending.
     """
-    dt = float(np.median(np.diff(t)))
     extra = 0.0
-    for a, b in zip(valid[:-1], valid[1:], strict=True):
-        if b - a <= max_gap + 1 or t[a] > tau + near * dt:
+    for start, end in long_gaps:
+        if start > tau + near or end < tau - near:
             continue
-        if t[b] < tau - near * dt:
-            continue
-        if tau <= t[a]:  # the gap follows the kink
-            extra = max(extra, (t[b] - tau) / np.sqrt(12.0))
-        elif tau >= t[b]:
-            extra = max(extra, (tau - t[a]) / np.sqrt(12.0))
+        if tau <= start:  # the gap follows the kink
+            extra = max(extra, (end - tau) / np.sqrt(12.0))
+        elif tau >= end:
+            extra = max(extra, (tau - start) / np.sqrt(12.0))
     return extra
 
 
