@@ -135,6 +135,7 @@ def cmd_track(args) -> int:
                     "description": layout.description},
         "ramp_pose": result.ramp,
         "pixel_sd": result.pixel_sd,
+        "leg_noise": result.noise,
         "frames_with_leg": result.frames_with,
         "gaps": gaps,
         "search": result.counts,
@@ -142,11 +143,12 @@ def cmd_track(args) -> int:
                        "axis (steer, lean) with hip points hip_width apart (tracking/joint.py); "
                        "frames whose angles jump away from both neighbouring stretches are gaps",
         "hip_width": {"value_m": result.hip_width, "source": result.hip_width_source},
-        "sd_method": "joint-fit covariance sigma^2 (J^T J)^-1, pixel sigma pooled over the video from "
-                     "reprojection residuals, inflated by (rms / expected rms)^2 where a frame fits "
-                     "worse than the noise explains, propagated to the angles; the ramp pose's error "
-                     "added where each frame has its own (a moving camera), else stated in "
-                     "ramp_pose.sd_deg (one bias common to all frames)",
+        "sd_method": "joint-fit covariance (J^T J)^-1 J^T S J (J^T J)^-1 with S each corner's variance, "
+                     "its marker's pixel SD pooled over the video from the reprojection residuals "
+                     "(leg_noise.marker_pixel_sd), times each frame's noise scale: its residual "
+                     "moderated by all frames' (empirical Bayes, leg_noise.frame_scale); propagated to "
+                     "the angles; the ramp pose's error added where each frame has its own (a moving "
+                     "camera), else stated in ramp_pose.sd_deg (one bias common to all frames)",
         "events_method": "kink (rate jump) in both leg pitches, continuous piecewise-quadratic "
                          "breakpoint fit; the leading leg strikes; contact position unknown",
         "software": _version(),

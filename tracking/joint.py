@@ -69,7 +69,16 @@ class WalkerPose:
         axle frame about its own b1, b3), ``pitch_L``, ``pitch_R`` (rad, the seen legs only),
         ``hx, hy, hz`` (m) and, if it was fitted, ``hip_width`` (m).
     normal : ndarray, shape (k, k)
-        ``(J^T J)^-1`` for unit pixel variance; the covariance is ``sigma^2 * normal``.
+        ``(J^T J)^-1`` for unit pixel variance; the covariance is ``sigma^2 * normal`` when every
+        corner is equally precise.
+    residuals : ndarray, shape (2 n,), or None
+        The reprojection residuals at the fit (pixels; u and v of each corner in turn, the left
+        leg's corners first), for a covariance with corners of unequal precision
+        (:func:`toywalk.tracking.angles.walker_angles_with_sd`).
+    jacobian : ndarray, shape (2 n, k), or None
+        Their Jacobian in the parameters of ``names``.
+    labels : ndarray of int, shape (n,), or None
+        Each corner's marker id, where the observations named them.
     """
 
     axle: np.ndarray
@@ -80,6 +89,9 @@ class WalkerPose:
     n_points: dict
     names: tuple
     normal: np.ndarray
+    residuals: np.ndarray | None = None
+    jacobian: np.ndarray | None = None
+    labels: np.ndarray | None = None
 
     @property
     def seen(self) -> tuple:
@@ -107,8 +119,8 @@ class WalkerPose:
         axle = self.axle @ _exp([d.get("d1", 0.0), 0.0, d.get("d3", 0.0)])
         pitch = {f: self.pitch[f] + d.get(f"pitch_{f}", 0.0) for f in FEET}
         hip = self.hip + np.array([d.get("hx", 0.0), d.get("hy", 0.0), d.get("hz", 0.0)])
-        return WalkerPose(axle=axle, pitch=pitch, hip=hip, hip_width=self.hip_width + d.get("hip_width", 0.0),
-                          rms=self.rms, n_points=self.n_points, names=self.names, normal=self.normal)
+        return dataclasses.replace(self, axle=axle, pitch=pitch, hip=hip,
+                                   hip_width=self.hip_width + d.get("hip_width", 0.0))
 
 
 def walker_from_legs(legs: dict, hip_width: float, prefer: str | None = None):
@@ -135,7 +147,8 @@ class _Problem:
     """Residuals and Jacobian of the joint model for one frame's observations.
 
     The seen legs' corners are stacked (left leg's first): ``obj`` (n, 3), ``meas`` (n, 2),
-    each point's leg in ``foot`` (n,; index into ``feet``) and whether it is on the left leg.
+    each point's leg in ``foot`` (n,; index into ``feet``), whether it is on the left leg and,
+    where the observations name them, each point's marker id in ``labels`` (n,; else None).
     """
 
     def __init__(self, camera: Camera, observations: dict, fit_width: bool):
@@ -153,6 +166,13 @@ class _Problem:
         px = np.concatenate([np.asarray(observations[f][1], float).reshape(-1, 2) for f in self.feet])
         self.meas = undistort_pixels(camera, px) if np.any(camera.distortion) else \
             (px - camera.matrix[:2, 2]) / [self.fx, self.fy]
+        named = [len(observations[f]) > 2 for f in self.feet]
+        if any(named) and not all(named):
+            raise ValueError("observations must name the markers of every seen leg or of none")
+        self.labels = np.concatenate([np.asarray(observations[f][2], int).reshape(-1) for f in self.feet]) \
+            if all(named) else None
+        if self.labels is not None and len(self.labels) != len(self.obj):
+            raise ValueError(f"observations' marker labels: {len(self.labels)} for {len(self.obj)} corners")
         self.foot = np.repeat(np.arange(len(self.feet)), [len(objs[f]) for f in self.feet])
         self.left = np.array([f == "L" for f in self.feet])[self.foot]
         self._pitch_column = np.array([self.names.index(f"pitch_{f}") for f in self.feet])[self.foot]
@@ -218,8 +238,9 @@ def fit_walker(camera: Camera, observations: dict, init, *, hip_width: float, fi
     Parameters
     ----------
     camera : Camera
-    observations : dict {'L', 'R'} -> (object_points, image_points)
-        Per seen leg: corners in its body frame, shape (n, 3) (m), and their pixels, shape (n, 2).
+    observations : dict {'L', 'R'} -> (object_points, image_points[, labels])
+        Per seen leg: corners in its body frame, shape (n, 3) (m), their pixels, shape (n, 2),
+        and optionally each corner's marker id, shape (n,) (for every seen leg or for none).
     init : (axle, pitch, hip)
         Starting point: rotation (3, 3), dict of pitches (rad; a seen leg's must be finite), the
         right hip point (3,) (m); see :func:`walker_from_legs`.
@@ -288,4 +309,4 @@ def fit_walker(camera: Camera, observations: dict, init, *, hip_width: float, fi
             pitch[f] = math.nan
     return WalkerPose(axle=axle, pitch=pitch, hip=hip, hip_width=width,
                       rms=math.sqrt(cost / len(r)), n_points=dict(problem.n_points),
-                      names=problem.names, normal=normal)
+                      names=problem.names, normal=normal, residuals=r, jacobian=jac, labels=problem.labels)

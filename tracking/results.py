@@ -52,6 +52,10 @@ class TrackResult:
         Wall-clock time spent tracking (s).
     hip_width : float
         The hip width used (m) and, in ``hip_width_source``, where it came from.
+    noise : dict
+        The legs' pixel noise model: ``marker_pixel_sd`` (marker id -> pixels,
+        :func:`toywalk.tracking.angles.pooled_marker_sd`) and ``frame_scale``, the prior of each
+        frame's noise scale (:func:`toywalk.tracking.angles.moderated_noise_scales`).
     timestamps : dict
         How the frame times were read (:func:`toywalk.tracking.video.timestamp_summary`):
         ``policy``, ``description``, ``frame_interval_s``; empty until the caller that knows the
@@ -74,6 +78,7 @@ class TrackResult:
     track_seconds: float = 0.0
     hip_width: float = math.nan
     hip_width_source: str = ""
+    noise: dict = dataclasses.field(default_factory=dict)
     timestamps: dict = dataclasses.field(default_factory=dict)
 
     def table(self, *, smoothed: bool = False, metadata=None) -> TrajectoryTable:

@@ -49,9 +49,12 @@ import numpy as np
 
 from ..model.trajectory import SIGNALS
 from .angles import (
+    moderated_noise_scales,
     motion_smoothed,
+    pooled_marker_sd,
     pooled_pixel_sd,
     pooled_walker_sd,
+    residual_ratio,
     walker_angles,
     walker_angles_with_sd,
 )
@@ -440,7 +443,8 @@ class Tracker:
             ids = [i for i in body.ids if i in found and i != drop]
             if ids:
                 obs[foot] = (np.concatenate([body.points[i] for i in ids]),
-                             np.concatenate([found[i] for i in ids]), ids)
+                             np.concatenate([found[i] for i in ids]),
+                             np.concatenate([np.full(len(body.points[i]), i) for i in ids]), ids)
         return obs
 
     def _fit_walker(self, found: dict, preds: dict):
@@ -457,11 +461,11 @@ class Tracker:
         if not obs:
             return None, None
         best = self._best_walker(obs, preds)
-        n_markers = sum(len(o[2]) for o in obs.values())
+        n_markers = sum(len(o[3]) for o in obs.values())
         if n_markers >= 3 and (best is None or best.rms > self.outlier_rms):
             trials = []
             for foot in obs:
-                for i in obs[foot][2]:
+                for i in obs[foot][3]:
                     sub = self._leg_observations(found, drop=i)
                     w = self._best_walker(sub, preds)
                     if w is not None:
@@ -473,7 +477,7 @@ class Tracker:
                     best, obs = w, sub
         if best is None:
             return None, None
-        return best, {f: o[:2] for f, o in obs.items()}
+        return best, {f: o[:3] for f, o in obs.items()}
 
     def _best_walker(self, obs: dict, preds: dict):
         if self._width_in_use[0] != len(self._width_samples):  # the median changes with the samples
@@ -484,15 +488,15 @@ class Tracker:
         # shows both legs (a leg seen through one flag cannot be placed with a wrong width)
         fit_width = self.hip_width_given is None and len(obs) == 2 and (
             not self._width_samples
-            or (len(self._width_samples) < _WIDTH_SAMPLES and all(len(o[2]) >= 2 for o in obs.values())))
-        data = {f: o[:2] for f, o in obs.items()}
+            or (len(self._width_samples) < _WIDTH_SAMPLES and all(len(o[3]) >= 2 for o in obs.values())))
+        data = {f: o[:3] for f, o in obs.items()}
         predicted = {}
         for name, foot in LEGS.items():
             p = preds.get(name)
             if p is not None:
                 predicted[foot] = (cv2.Rodrigues(np.asarray(p[0], float).reshape(3, 1))[0],
                                    np.asarray(p[1], float).reshape(3))
-        prefer = max(obs, key=lambda f: len(obs[f][2]))
+        prefer = max(obs, key=lambda f: len(obs[f][3]))
         fits = []
 
         def attempt(legs, ref):
@@ -604,6 +608,9 @@ class Tracker:
         walker = self._final_walker()
         pixel_sd = {name: pooled_pixel_sd(self.poses[name]) for name in self.bodies if name not in LEGS}
         legs_sd = pooled_walker_sd(walker)
+        marker_sd = pooled_marker_sd(walker)
+        ratios = [residual_ratio(w, legs_sd, marker_sd) if w is not None else (math.nan, 0) for w in walker]
+        scales, prior = moderated_noise_scales([r for r, _ in ratios], [d for _, d in ratios])
         pixel_sd.update({name: legs_sd for name in LEGS if name in self.bodies})
         ramp = self._ramp_frame(n, pixel_sd.get("ramp"))
         raw = {k: np.full(n, np.nan) for k in SIGNALS}
@@ -613,7 +620,8 @@ class Tracker:
             if r_ramp is None or walker[i] is None:
                 continue
             values, sds = walker_angles_with_sd(r_ramp, walker[i], legs_sd,
-                                                ramp.covariance[i] if ramp.per_frame else None)
+                                                ramp.covariance[i] if ramp.per_frame else None, marker_sd,
+                                                scale=float(scales[i]))
             for k in SIGNALS:
                 raw[k][i], sd[k][i] = values[k], sds[k]
         rejected = _inconsistent_frames(raw)
@@ -635,6 +643,8 @@ class Tracker:
                                       "order": smoothing_order},
                            poses={**self.poses, "walker": walker},
                            hip_width=self.hip_width,
+                           noise={"marker_pixel_sd": {int(k): float(v) for k, v in sorted(marker_sd.items())},
+                                  "frame_scale": _json_ready(prior)},
                            hip_width_source="given" if self.hip_width_given is not None else
                            f"estimated: median of {len(self._width_samples)} frames' joint fits"
                            if self._width_samples else "not measured (no frame showed both legs "
@@ -694,6 +704,15 @@ class Tracker:
             raise TrackError(f"no ramp marker found in any of the {n} frames and the camera file has "
                              "no ramp_pose: the ramp frame is unknown")
         return measured
+
+
+def _json_ready(prior: dict) -> dict:
+    """:func:`moderated_noise_scales`' prior for a JSON file: an infinite prior_dof (the frames as
+    alike as chi-square noise allows) as a word."""
+    dof = prior.get("prior_dof")
+    if dof is not None and math.isinf(dof):
+        return {**prior, "prior_dof": "infinite: the frames' noise alike"}
+    return dict(prior)
 
 
 def _inconsistent_frames(raw: dict) -> np.ndarray:

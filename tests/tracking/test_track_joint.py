@@ -23,6 +23,12 @@ ANGLES = (0.2, -0.05, -0.25, 0.3)  # steer, lean, pitch_left, pitch_right (rad)
 
 @pytest.fixture(scope="module")
 def setup():
+    return compass_scene()
+
+
+def compass_scene():
+    """(camera, ramp rotation, true leg poses {foot: (R, hip)}, corners {foot: {id: (object points,
+    pixels)}}) of compass-3d standing at ``ANGLES`` before its default camera."""
     camera = default_camera_for(PARAMS)
     layout = default_layout(PARAMS)
     r_ramp = cv2.Rodrigues(camera.ramp_pose[0].reshape(3, 1))[0]
