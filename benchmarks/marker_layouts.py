@@ -38,7 +38,6 @@ import tempfile
 import time
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -72,13 +71,7 @@ def _case(table, params, layout, pattern, seed: int, folder: Path) -> dict:
     film = Filming(table, params, camera, layout, RenderOptions.preset(1, duration=2.0), seed,
                    hidden=lambda k: hide(k).values())
     video = folder / "v.mp4"
-    writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"mp4v"), film.options.fps, camera.size)
-    truth = []
-    for k in range(len(film)):
-        writer.write(film.frame(k))
-        truth.append(film.truth(k)[0])
-    writer.release()
-    truth = np.array(truth)
+    truth = film.write_video(video)
     result, _ = track_video(video, camera, layout)
     n = len(truth)
     out = {"frames": n}

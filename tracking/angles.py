@@ -243,7 +243,8 @@ def pooled_marker_sd(poses, min_frames: int = 5, iterations: int = 20) -> dict:
         A marker seen with residual freedom in fewer frames is left out (the caller's common SD
         serves it).
     iterations : int
-        Fixed-point steps (each moves a variance by the ratio of medians).
+        Fixed-point steps at most (each moves a variance by the ratio of medians; they stop when
+        none moves by 1e-6).
 
     Returns
     -------
@@ -252,46 +253,65 @@ def pooled_marker_sd(poses, min_frames: int = 5, iterations: int = 20) -> dict:
     """
     from scipy.stats import chi2
 
-    frames = []  # per frame: markers (m,), sums of squares (m,), membership (m, 2n), M^2, M
-    for p in poses:
-        if p is None or p.labels is None or p.jacobian is None or p.dof <= 0:
-            continue
+    # One row per (frame, marker seen in it): the marker's sum of squared residuals, its share of
+    # the residual freedom (tr of its block of M), and, for the variances v of all markers,
+    # tr C = spill @ v and tr C^2 = v^T cross v with C = sum_n v_n R_n R_n^T, R_n the marker's
+    # rows of M in marker n's columns.
+    usable = [p for p in poses if p is not None and p.labels is not None and p.jacobian is not None
+              and p.dof > 0]
+    names = sorted({int(m) for p in usable for m in np.unique(p.labels)})
+    if not names:
+        return {}
+    index = {m: i for i, m in enumerate(names)}
+    owner, squares, shares, spill, cross = [], [], [], [], []
+    for p in usable:
         maker = np.eye(len(p.residuals)) - p.jacobian @ p.normal @ p.jacobian.T
-        markers = np.unique(p.labels)
-        member = np.repeat(p.labels, 2)[None, :] == markers[:, None]  # (m, 2n)
-        frames.append((markers.tolist(), member.astype(float) @ p.residuals**2, member, maker))
-    counts = {}
-    for markers, _, member, maker in frames:
-        for k, m in enumerate(markers):
-            if np.trace(maker[np.ix_(member[k], member[k])]) > 0.5:  # else the residual says little
-                counts[m] = counts.get(m, 0) + 1
-    known = sorted(m for m, c in counts.items() if c >= min_frames)
+        # the coordinates grouped by marker, each marker's in a block of its own (q markers)
+        order = np.argsort(np.repeat(p.labels, 2), kind="stable")
+        present, sizes = np.unique(p.labels, return_counts=True)
+        if np.any(sizes != sizes[0]):
+            raise ValueError(f"pooled_marker_sd: markers with unequal corner counts {sizes.tolist()}")
+        q, d = len(present), 2 * int(sizes[0])
+        blocks = maker[np.ix_(order, order)].reshape(q, d, q, d)  # [m, a, n, b] = M_(m a),(n b)
+        gram = np.einsum("manb,mcnb->mnac", blocks, blocks)  # R_mn R_mn^T
+        slots = np.array([index[int(m)] for m in present])
+        a = np.zeros((q, len(names)))
+        a[:, slots] = np.einsum("mnaa->mn", gram)
+        t = np.zeros((q, len(names), len(names)))
+        t[:, slots[:, None], slots[None, :]] = np.einsum("mnac,mkac->mnk", gram, gram)
+        r = p.residuals[order].reshape(q, d)
+        owner.extend(slots.tolist())
+        squares.extend(np.einsum("ma,ma->m", r, r).tolist())
+        shares.extend(np.einsum("mama->m", blocks).tolist())
+        spill.extend(a)
+        cross.extend(t)
+    owner, squares, shares = np.array(owner), np.array(squares), np.array(shares)
+    spill, cross = np.array(spill), np.array(cross)
+    # at least half a degree of freedom in a frame: else the residual says little
+    counted = np.bincount(owner[shares > 0.5], minlength=len(names))
+    known = [i for i in range(len(names)) if counted[i] >= min_frames]
     if not known:
         return {}
-    variance = dict.fromkeys(known, 1.0)
+    variance = np.ones(len(names))
     for _ in range(iterations):
-        ratios = {m: [] for m in known}
-        dofs = {m: [] for m in known}
-        for markers, squares, member, maker in frames:
-            v = np.array([variance.get(m, np.nan) for m in markers])
-            if np.any(np.isnan(v)):  # a marker too rarely seen: the others' median stands in
-                v = np.where(np.isnan(v), np.nanmedian(list(variance.values())), v)
-            s = (member.T.astype(float) @ v)  # each coordinate's variance (2n,)
-            for k, m in enumerate(markers):
-                if m not in variance:
-                    continue
-                rows = maker[member[k]]
-                c = (rows * s) @ rows.T  # the marker's residuals' covariance, M S M
-                trace = float(np.trace(c))
-                dof = trace**2 / float(np.sum(c * c))  # Satterthwaite's (1946) effective freedom
-                if dof > 0.5:
-                    ratios[m].append(squares[k] / trace)
-                    dofs[m].append(dof)
-        for m in known:
-            dof = float(np.median(dofs[m]))
-            # the median of a chi-square over its mean, for dof degrees of freedom
-            variance[m] *= float(np.median(ratios[m])) / (chi2.median(dof) / dof)
-    return {m: max(math.sqrt(variance[m]), 0.02) for m in known}
+        v = variance.copy()
+        rare = np.setdiff1d(np.arange(len(names)), known)
+        v[rare] = np.median(variance[known])  # a marker too rarely seen: the others' median
+        trace = spill @ v
+        dof = trace**2 / np.einsum("pij,i,j->p", cross, v, v)  # Satterthwaite's (1946)
+        ratio = squares / trace
+        step = np.ones(len(names))
+        for i in known:
+            take = (owner == i) & (dof > 0.5)
+            if not take.any():
+                continue
+            d = float(np.median(dof[take]))
+            # the median of a chi-square over its mean, for d degrees of freedom
+            step[i] = float(np.median(ratio[take])) / (chi2.median(d) / d)
+        variance *= step
+        if np.max(np.abs(step - 1.0)) < 1e-6:  # settled: SDs to 5e-7
+            break
+    return {names[i]: max(math.sqrt(variance[i]), 0.02) for i in known}
 
 
 def pooled_pixel_sd(poses) -> float:

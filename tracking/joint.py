@@ -119,8 +119,9 @@ class WalkerPose:
         axle = self.axle @ _exp([d.get("d1", 0.0), 0.0, d.get("d3", 0.0)])
         pitch = {f: self.pitch[f] + d.get(f"pitch_{f}", 0.0) for f in FEET}
         hip = self.hip + np.array([d.get("hx", 0.0), d.get("hy", 0.0), d.get("hz", 0.0)])
-        return dataclasses.replace(self, axle=axle, pitch=pitch, hip=hip,
-                                   hip_width=self.hip_width + d.get("hip_width", 0.0))
+        return WalkerPose(axle=axle, pitch=pitch, hip=hip, hip_width=self.hip_width + d.get("hip_width", 0.0),
+                          rms=self.rms, n_points=self.n_points, names=self.names, normal=self.normal,
+                          residuals=self.residuals, jacobian=self.jacobian, labels=self.labels)
 
 
 def walker_from_legs(legs: dict, hip_width: float, prefer: str | None = None):

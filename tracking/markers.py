@@ -35,6 +35,7 @@ from toywalk.model.files import atomic_write_json, read_json_object
 
 __all__ = [
     "BODIES",
+    "LEGS",
     "LayoutError",
     "Marker",
     "MarkerLayout",
@@ -48,6 +49,8 @@ __all__ = [
 
 #: Bodies a marker can be stuck to.
 BODIES = ("left_leg", "right_leg", "ramp")
+#: The leg bodies by their foot's letter ('L', 'R': model.md's legs, the trajectory's stance).
+LEGS = {"left_leg": "L", "right_leg": "R"}
 
 
 class LayoutError(ValueError):

@@ -51,7 +51,7 @@ from toywalk.model.files import software_version as _version
 from toywalk.model.kinematics import lowest_point
 
 from .camera import Camera, project
-from .markers import MarkerLayout, default_layout, marker_corners
+from .markers import LEGS, MarkerLayout, default_layout, marker_corners
 from .scene import CameraPath, Scene, WalkerState, default_view
 
 __all__ = ["BLUR_STEP_PX", "NOISE_LEVELS", "Filming", "Motion", "RenderError", "RenderOptions",
@@ -408,7 +408,7 @@ def shoot_times(motion: Motion, options: RenderOptions) -> np.ndarray:
 
 
 #: Marker bodies (markers.BODIES) by their key in Scene.body_poses
-_BODY_KEY = {"left_leg": "L", "right_leg": "R", "ramp": "ramp"}
+_BODY_KEY = {**LEGS, "ramp": "ramp"}
 
 
 class Filming:
@@ -552,6 +552,23 @@ class Filming:
         moved = float(np.max(step[np.isfinite(step)])) if np.isfinite(step).any() else 0.0
         count = int(min(MAX_SUBFRAMES, max(self.options.blur_subframes, math.ceil(moved / BLUR_STEP_PX) + 1)))
         return np.linspace(-half, half, count)
+
+    def write_video(self, path: str | Path) -> np.ndarray:
+        """Draw every frame into an MPEG-4 video at ``path`` and return the true angles, shape
+        (n_frames, 4) (rad, as :meth:`truth`'s). For quick studies: no truth files, metadata or
+        staging, which :func:`render` writes."""
+        writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), float(self.options.fps),
+                                 self.camera.size)
+        if not writer.isOpened():
+            raise RenderError(f"cannot open an mp4v video writer for {path}")
+        try:
+            angles = []
+            for k in range(len(self)):
+                writer.write(self.frame(k))
+                angles.append(self.truth(k)[0])
+        finally:
+            writer.release()
+        return np.array(angles)
 
     def truth(self, k: int) -> tuple[np.ndarray, str, np.ndarray]:
         """(lean, steer, pitch_left, pitch_right) (rad), the stance leg and its contact (x, y) (m) at

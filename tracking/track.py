@@ -69,7 +69,7 @@ from .events import (
     step_samples,
 )
 from .joint import WalkerPose, fit_walker, walker_from_legs
-from .markers import MarkerLayout, body_points
+from .markers import LEGS, MarkerLayout, body_points
 from .pose import PoseEstimate, estimate_pose
 from .ramp import fixed_ramp, measure_ramp
 from .results import TrackResult
@@ -79,7 +79,6 @@ from .video import FrameSource, TrackError, open_video, timestamp_summary
 __all__ = ["FrameSource", "TrackError", "TrackResult", "Tracker", "open_video", "track_frames",
            "track_video", "walker_angles", "walker_angles_with_sd"]
 
-LEGS = {"left_leg": "L", "right_leg": "R"}
 _WIDTH_SAMPLES = 25  # frames whose joint fits estimate the hip width (when not given)
 #: A followed ramp marker's code is read at least every this many frames (its edges, within
 #: 0.5 px of where it was predicted, are checked in every frame)

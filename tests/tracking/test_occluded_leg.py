@@ -44,7 +44,7 @@ def _hidden(k: int) -> dict:
 
 
 def _render_hidden(folder, params_path, steps: int, seed: int, duration: float, shift: int = 0,
-                   hidden_in=None, third_flag: bool = False, one_marker_smoothing: bool = True):
+                   hidden_in=None, third_flag: bool = False):
     """Simulate, render at level 1 with the flags of :func:`_hidden` (of frame k + ``shift``; or
     of ``hidden_in``, a function of the same shape) painted over, track:
     (TrackResult, true angles (n, 4), markers seen per leg {foot: (n,)}, hidden {foot: (n,) bool},
@@ -58,18 +58,12 @@ def _render_hidden(folder, params_path, steps: int, seed: int, duration: float, 
     film = Filming(read_trajectory(folder / "walk.csv"), params, camera, layout,
                    RenderOptions.preset(1, duration=duration), seed,
                    hidden=lambda k: schedule(k).values())
-    writer = cv2.VideoWriter(str(folder / "v.mp4"), cv2.VideoWriter_fourcc(*"mp4v"), film.options.fps,
-                             camera.size)
-    truth = []
-    for k in range(len(film)):
-        writer.write(film.frame(k))
-        truth.append(film.truth(k)[0])
-    writer.release()
-    result, _ = track_video(folder / "v.mp4", camera, layout, one_marker_smoothing=one_marker_smoothing)
+    truth = film.write_video(folder / "v.mp4")
+    result, _ = track_video(folder / "v.mp4", camera, layout, one_marker_smoothing=True)
     walker = result.poses["walker"]
     seen = {f: np.array([0 if w is None else w.n_points.get(f, 0) // 4 for w in walker]) for f in "LR"}
     hidden = {f: np.array([f in schedule(k) for k in range(len(film))]) for f in "LR"}
-    return result, np.array(truth), seen, hidden, camera
+    return result, truth, seen, hidden, camera
 
 
 def _check(result, truth, seen, hidden, camera, walker: str) -> dict:

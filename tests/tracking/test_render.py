@@ -298,6 +298,34 @@ def test_video_files_read_back(tmp_path, toy_params, name, fourcc):
     assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".")) == []
 
 
+def test_write_video_gives_the_frames_and_their_truth(tmp_path, toy_params):
+    """Filming.write_video (the studies' quick path): every frame in the file, in order, at the
+    camera's size, and the true angles of each. Each frame read back, less the mean frame, is
+    most like the frame of the same index drawn again with the same seed (correlation 0.82-0.92
+    after MPEG-4 coding, at most 0.69 with any other frame)."""
+    table = _walk(toy_params, duration=0.3, n=31, switch=0.15)
+
+    def film():
+        return Filming(table, toy_params, _small_camera(toy_params), default_layout(toy_params),
+                       RenderOptions.preset(1, fps=30), 7)
+
+    truth = film().write_video(tmp_path / "v.mp4")
+    again = film()
+    drawn = np.array([again.frame(k).astype(float) for k in range(len(again))])
+    mean = drawn.mean(axis=0)
+    drawn -= mean
+    assert truth.shape == (10, 4)
+    assert_allclose(truth, [again.truth(k)[0] for k in range(10)])
+    cap = cv2.VideoCapture(str(tmp_path / "v.mp4"))
+    for k in range(10):
+        ok, frame = cap.read()
+        assert ok and frame.shape == (180, 320, 3)
+        likeness = [np.corrcoef(frame.ravel() - mean.ravel(), d.ravel())[0, 1] for d in drawn]
+        assert np.argmax(likeness) == k and likeness[k] > 0.75, likeness
+    assert not cap.read()[0]
+    cap.release()
+
+
 def test_interrupted_render_leaves_nothing(tmp_path, toy_params):
     def stop(k, n):
         if k == 3:
