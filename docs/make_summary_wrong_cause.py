@@ -14,13 +14,13 @@ seeds per hidden effect, default 30; 2 processes).
 """
 
 import csv
-import math
 import os
 import sys
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
+from make_summary_null import CANDIDATES, PARAMS, SD, SLOPE_SD  # the same toy, numbers and SDs
 from scipy import stats
 from toywalk.model import find_gait, load_params
 from toywalk.model.effects import EFFECTS
@@ -30,11 +30,6 @@ from toywalk.model.walker import Walker
 from toywalk.sysid.summary import SummaryData, diagnose_summary
 
 HERE = Path(__file__).resolve().parent
-PARAMS = HERE.parent / "data" / "params" / "stable-toy.toml"
-SD = {"stride_time": 5e-4, "stride_length": 2e-4, "lean_amplitude": math.radians(0.1),
-      "steer_amplitude": math.radians(0.1)}
-SLOPE_SD = math.radians(0.1)
-CANDIDATES = ["impact_trailing_share", "hip_damping", "rolling_resistance"]
 
 _state = {}
 
