@@ -2,7 +2,8 @@
 it names each effect of the library hidden in a walk.
 
     python docs/make_diagnose_validation.py null [SEEDS]      -> docs/diagnose_null.csv
-    python docs/make_diagnose_validation.py effects [NAME ...] -> docs/diagnose_effects.csv (and .json)
+    python docs/make_diagnose_validation.py effects [--shift S] [NAME ...]
+                                                            -> docs/diagnose_effects.csv (and .json)
 
 Walks: the stable toy (data/params/stable-toy.toml), 12 steps from its gait, 0.002 rad of white
 noise on every angle (a tracker's level), no contact positions; the base model frees the foot
@@ -18,7 +19,9 @@ offset it moves the gait by 1e-3 SD). A cross slope is therefore measured with t
 offsets held (``offsets`` = ``held``: the ramp's frame known, as from markers along its edge).
 The library's ``typical`` magnitudes move the stable toy's gait by tens of SDs or leave it without
 a gait. Each row is written as soon as it is measured, so a killed run keeps its rows; ``effects``
-with names measures only those.
+with names measures only those; ``--shift S`` hides them at S noise SDs beyond instead of
+:data:`SHIFT` (rows with ``scale`` = ``beyond S``: where the library's candidates that tie at 3
+SDs come apart).
 """
 
 from __future__ import annotations
@@ -90,8 +93,8 @@ def shift_sds(params, base=TOY, columns=None) -> tuple[float, float]:
     return float(np.max(np.abs(change))) / NOISE, float(np.max(np.abs(left))) / NOISE
 
 
-def magnitude(name: str, base=TOY, offsets: bool = True) -> tuple[float, float, float]:
-    """The strength of effect ``name`` that moves ``base``'s gait by :data:`SHIFT` noise SDs beyond
+def magnitude(name: str, base=TOY, offsets: bool = True, shift: float = SHIFT) -> tuple[float, float, float]:
+    """The strength of effect ``name`` that moves ``base``'s gait by ``shift`` noise SDs beyond
     what the base fit mimics (:func:`shift_sds`), with the shifts measured there (before, after
     the refit): from the ``typical`` magnitude (or a tenth of it, or a hundredth, where it leaves
     the walker without a gait), two secant steps in the magnitude."""
@@ -110,7 +113,7 @@ def magnitude(name: str, base=TOY, offsets: bool = True) -> tuple[float, float, 
     else:
         raise RuntimeError(f"no gait with {name} at a thousandth of its typical magnitude")
     for _ in range(2):
-        m *= SHIFT / s[1]
+        m *= shift / s[1]
         s = shifts(m)
     return m, *s
 
@@ -160,7 +163,7 @@ def null(seeds: int) -> None:
 HELD_OFFSETS = ("cross_slope",)
 
 
-def effects(names=()) -> None:
+def effects(names=(), shift: float = SHIFT) -> None:
     out = HERE / "diagnose_effects.csv"
     done = set()
     if out.exists():
@@ -168,11 +171,12 @@ def effects(names=()) -> None:
             done = {(r["effect"], r["offsets"], r["scale"]) for r in csv.DictReader(fh)}
     for k, name in enumerate(EFFECTS):
         offsets = name not in HELD_OFFSETS
-        key = (f"effects.{name}", "free" if offsets else "held", "beyond")
+        key = (f"effects.{name}", "free" if offsets else "held",
+               "beyond" if shift == SHIFT else f"beyond {shift:g}")
         if key in done or (names and name not in names):
             continue
         clock = time.perf_counter()
-        size, moved, beyond = magnitude(name, offsets=offsets)
+        size, moved, beyond = magnitude(name, offsets=offsets, shift=shift)
         truth = TOY.replace(**{f"effects.{name}": size})
         head = {"effect": key[0], "offsets": key[1], "scale": key[2], "truth": f"{size:.4g}",
                 "shift_sd": f"{moved:.2f}", "beyond_sd": f"{beyond:.2f}"}
@@ -216,6 +220,10 @@ if __name__ == "__main__":
     if sys.argv[1:2] == ["null"]:
         null(int(sys.argv[2]) if len(sys.argv) > 2 else 20)
     elif sys.argv[1:2] == ["effects"]:
-        effects(sys.argv[2:])
+        rest = sys.argv[2:]
+        if rest[:1] == ["--shift"]:
+            effects(rest[2:], float(rest[1]))
+        else:
+            effects(rest)
     else:
         sys.exit(__doc__)
