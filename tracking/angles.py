@@ -174,8 +174,9 @@ def moderated_noise_scales(ratios, dofs) -> tuple[np.ndarray, dict]:
     ``s0^2``, both estimated from the spread of all frames' log ratios; its posterior estimate is
     ``(d0 s0^2 + d rho) / (d0 + d)`` for a frame with ratio ``rho`` on ``d`` degrees of freedom
     (Smyth 2004, Stat. Appl. Genet. Mol. Biol. 3:3, doi:10.2202/1544-6115.1027, sections 3 and
-    6.2). Measured on toy-sized clips with a flag hidden: ``d0`` about 2, and error over SD moved
-    from 0.53-0.99 to 0.61-1.21 (benchmarks/TRACKING.md).
+    6.2). Measured on toy-sized clips with a flag hidden: ``d0`` about 2, and the pitch's error
+    over SD where a leg shows one flag moved from 0.51-1.09 to 0.61-1.22 (benchmarks/TRACKING.md,
+    "One marker on a leg").
 
     Parameters
     ----------
@@ -238,7 +239,8 @@ def pooled_marker_sd(poses, min_frames: int = 5, iterations: int = 20) -> dict:
     Parameters
     ----------
     poses : sequence of WalkerPose or None
-        One per frame; fits whose ``labels`` are None are skipped.
+        One per frame; fits whose ``labels`` are None, or whose markers have unequal numbers of
+        corners, are skipped.
     min_frames : int
         A marker seen with residual freedom in fewer frames is left out (the caller's common SD
         serves it).
@@ -269,8 +271,8 @@ def pooled_marker_sd(poses, min_frames: int = 5, iterations: int = 20) -> dict:
         # the coordinates grouped by marker, each marker's in a block of its own (q markers)
         order = np.argsort(np.repeat(p.labels, 2), kind="stable")
         present, sizes = np.unique(p.labels, return_counts=True)
-        if np.any(sizes != sizes[0]):
-            raise ValueError(f"pooled_marker_sd: markers with unequal corner counts {sizes.tolist()}")
+        if np.any(sizes != sizes[0]):  # markers of unequal corner counts: not pooled here
+            continue
         q, d = len(present), 2 * int(sizes[0])
         blocks = maker[np.ix_(order, order)].reshape(q, d, q, d)  # [m, a, n, b] = M_(m a),(n b)
         gram = np.einsum("manb,mcnb->mnac", blocks, blocks)  # R_mn R_mn^T
@@ -305,9 +307,9 @@ def pooled_marker_sd(poses, min_frames: int = 5, iterations: int = 20) -> dict:
             take = (owner == i) & (dof > 0.5)
             if not take.any():
                 continue
-            d = float(np.median(dof[take]))
-            # the median of a chi-square over its mean, for d degrees of freedom
-            step[i] = float(np.median(ratio[take])) / (chi2.median(d) / d)
+            freedom = float(np.median(dof[take]))
+            # the median of a chi-square over its mean, for that many degrees of freedom
+            step[i] = float(np.median(ratio[take])) / (chi2.median(freedom) / freedom)
         variance *= step
         if np.max(np.abs(step - 1.0)) < 1e-6:  # settled: SDs to 5e-7
             break
