@@ -77,13 +77,14 @@ def _case(table, params, layout, pattern, seed: int, folder: Path) -> dict:
     out = {"frames": n}
     for foot, pitch in (("L", "pitch_left"), ("R", "pitch_right")):
         frames = np.array([foot in hide(k) for k in range(n)]) if pattern != "none" else np.ones(n, bool)
-        leg = {"frames": int(frames.sum())}
+        # tracked: the frames counted in which this leg has a pose (its pitch is finite; lean and
+        # steer are finite whenever either leg has one)
+        leg = {"frames": int(frames.sum()), "tracked": int(np.isfinite(result.raw[pitch][frames]).sum())}
         for name in ("lean", "steer", pitch):
             err = np.degrees(result.raw[name] - truth[:, SIGNALS.index(name)])[frames]
             sd = np.degrees(result.raw_sd[name])[frames]
             ok = np.isfinite(err) & np.isfinite(sd)
             key = "pitch" if name == pitch else name
-            leg["tracked"] = int(ok.sum())
             leg[f"{key}_rms_deg"] = float(np.sqrt(np.mean(err[ok] ** 2))) if ok.any() else None
             leg[f"{key}_z_rms"] = float(np.sqrt(np.mean((err[ok] / sd[ok]) ** 2))) if ok.any() else None
         out[foot] = leg
