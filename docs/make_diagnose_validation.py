@@ -222,6 +222,8 @@ if __name__ == "__main__":
     elif sys.argv[1:2] == ["effects"]:
         rest = sys.argv[2:]
         if rest[:1] == ["--shift"]:
+            if len(rest) < 2:
+                sys.exit("--shift needs a number of noise SDs")
             effects(rest[2:], float(rest[1]))
         else:
             effects(rest)

@@ -146,7 +146,9 @@ def cmd_track(args) -> int:
         "sd_method": "joint-fit covariance (J^T J)^-1 J^T S J (J^T J)^-1 with S each corner's variance, "
                      "its marker's pixel SD pooled over the video from the reprojection residuals "
                      "(leg_noise.marker_pixel_sd), times each frame's noise scale: its residual "
-                     "moderated by all frames' (empirical Bayes, leg_noise.frame_scale); propagated to "
+                     "moderated by all frames' (empirical Bayes; with fewer than 10 frames, its residual "
+                     "ratio where above 1: leg_noise.frame_scale.method), never under 0.02 px; "
+                     "propagated to "
                      "the angles; the ramp pose's error added where each frame has its own (a moving "
                      "camera), else stated in ramp_pose.sd_deg (one bias common to all frames)",
         "events_method": "kink (rate jump) in both leg pitches, continuous piecewise-quadratic "

@@ -567,7 +567,7 @@ def diagnose_summary(params: Params, data: SummaryData, *, free=(), effects=None
         try:
             at_measured = solve_fixed_point(
                 Walker(params.replace(**{k: v for k, (v, _) in data.priors.items()})), gait.fixed_point)
-        except GaitNotFound:
+        except (GaitNotFound, ParameterError, ValueError):  # an extra start only
             pass
     base_vector = [base.residuals[k] for k in data.targets]
     say(f"sensitivity of the numbers to {K} candidates")
@@ -646,9 +646,11 @@ def diagnose_summary(params: Params, data: SummaryData, *, free=(), effects=None
             key = f"{a}+{b_name}"
             fits[key] = fit
             adds = [lr_p_value(fits[m].chi2 - fit.chi2, False) for m in (a, b_name)]
-            # a member whose interval in the pair holds its null value adds nothing, whatever its
-            # own fit's chi-square says (that fit may have ended in a local minimum)
-            away = [not fit.interval[m][0] <= by_name[m].base <= fit.interval[m][1] for m in (a, b_name)]
+            # a member whose interval in the pair holds its null value (or is unknown) adds
+            # nothing, whatever its own fit's chi-square says (that fit may have ended in a local
+            # minimum)
+            away = [bool(np.all(np.isfinite(fit.interval[m])))
+                    and not fit.interval[m][0] <= by_name[m].base <= fit.interval[m][1] for m in (a, b_name)]
             pairs.append({"pair": [a, b_name], "chi2": fit.chi2, "dof": fit.dof, "away_from_null": away,
                           "p_fit": fit.p_value, "reaches": fit.reaches(alpha),
                           "adds_p": adds, "estimate": {m: fit.estimates[m] for m in (a, b_name)},

@@ -6,11 +6,14 @@ pitch about it, in the camera frame; turned into the ramp frame, the legs' rotat
 ``Rz(steer) Rx(lean) Ry(pitch)`` (:func:`toywalk.model.kinematics.hip_axis_angles`,
 :func:`toywalk.model.kinematics.pitch_angle`, as
 :func:`toywalk.model.kinematics.angles_from_rotations`; the joint fit's legs share b2 exactly, so
-no averaging; one leg seen: the other pitch a gap). Their standard deviations propagate the fit's covariance
-``sigma^2 (J^T J)^-1`` (Hartley & Zisserman 2004, Multiple View Geometry, 2nd ed., section 5.2),
-with the pixel noise ``sigma`` pooled over the video from the reprojection residuals
-(:func:`pooled_pixel_sd`, :func:`pooled_walker_sd`), through the angle function by finite
-differences.
+no averaging; one leg seen: the other pitch a gap). Their standard deviations propagate the fit's
+covariance through the angle function by finite differences. The covariance is
+``sigma^2 (J^T J)^-1`` (Hartley & Zisserman 2004, Multiple View Geometry, 2nd ed., section 5.2)
+when every corner has one pixel noise ``sigma`` pooled over the video from the reprojection
+residuals (:func:`pooled_pixel_sd`, :func:`pooled_walker_sd`); the tracker gives each marker its
+own (:func:`pooled_marker_sd`), takes the unweighted fit's sandwich covariance, and scales each
+frame by its own residual moderated by all frames' (:func:`residual_ratio`,
+:func:`moderated_noise_scales`).
 
 Angles are returned in the order ``(lean, steer, pitch_left, pitch_right)`` (rad), the trajectory
 file's :data:`toywalk.model.trajectory.SIGNALS` names.
@@ -209,7 +212,7 @@ def moderated_noise_scales(ratios, dofs) -> tuple[np.ndarray, dict]:
     z = np.log(ratios[good]) - digamma(d / 2) + np.log(d / 2)
     centre = float(np.mean(z))
     excess = float(np.mean((z - centre) ** 2 * len(z) / (len(z) - 1) - polygamma(1, d / 2)))
-    if excess > 0:
+    if excess > float(polygamma(1, 1e7)):  # else d0 > 2e7: the frames as alike as noise allows
         d0 = 2.0 * brentq(lambda x: float(polygamma(1, x)) - excess, 1e-6, 1e7)
         s0 = math.exp(centre + float(digamma(d0 / 2)) - math.log(d0 / 2))
     else:
@@ -287,7 +290,9 @@ def pooled_marker_sd(poses, min_frames: int = 5, iterations: int = 20) -> dict:
         shares.extend(np.einsum("mama->m", blocks).tolist())
         spill.extend(a)
         cross.extend(t)
-    owner, squares, shares = np.array(owner), np.array(squares), np.array(shares)
+    if not owner:
+        return {}
+    owner, squares, shares = np.array(owner, int), np.array(squares), np.array(shares)
     spill, cross = np.array(spill), np.array(cross)
     # at least half a degree of freedom in a frame: else the residual says little
     counted = np.bincount(owner[shares > 0.5], minlength=len(names))

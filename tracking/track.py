@@ -610,6 +610,9 @@ class Tracker:
         marker_sd = pooled_marker_sd(walker)
         ratios = [residual_ratio(w, legs_sd, marker_sd) if w is not None else (math.nan, 0) for w in walker]
         scales, prior = moderated_noise_scales([r for r, _ in ratios], [d for _, d in ratios])
+        # sub-pixel corners are never better than 0.02 px (pooled_pixel_sd's floor): nor is a
+        # frame's noise, scaled
+        scales = np.maximum(scales, (0.02 / min([legs_sd, *marker_sd.values()])) ** 2)
         pixel_sd.update({name: legs_sd for name in LEGS if name in self.bodies})
         ramp = self._ramp_frame(n, pixel_sd.get("ramp"))
         raw = {k: np.full(n, np.nan) for k in SIGNALS}
