@@ -23,6 +23,7 @@ import sys
 from pathlib import Path
 
 from toywalk.model.files import DATA_DIR as _DATA
+from toywalk.model.files import strict_json
 
 __all__ = ["cmd_track", "register"]
 
@@ -135,7 +136,7 @@ def cmd_track(args) -> int:
                     "description": layout.description},
         "ramp_pose": result.ramp,
         "pixel_sd": result.pixel_sd,
-        "leg_noise": result.noise,
+        "leg_noise": strict_json(result.noise),  # an infinite prior_dof (frames alike): null
         "frames_with_leg": result.frames_with,
         "gaps": gaps,
         "search": result.counts,

@@ -157,7 +157,7 @@ def residual_ratio(pose: WalkerPose, pixel_sd: float, marker_sd=None) -> tuple[f
     rss = 2 * sum(pose.n_points.values()) * pose.rms**2
     if variances is None:
         return rss / (pixel_sd**2 * pose.dof), pose.dof
-    maker = np.eye(len(variances)) - pose.jacobian @ pose.normal @ pose.jacobian.T
+    maker = pose.residual_maker
     return float(pose.residuals @ pose.residuals) / float(np.sum(maker**2 * variances)), pose.dof
 
 
@@ -270,7 +270,7 @@ def pooled_marker_sd(poses, min_frames: int = 5, iterations: int = 20) -> dict:
     index = {m: i for i, m in enumerate(names)}
     owner, squares, shares, spill, cross = [], [], [], [], []
     for p in usable:
-        maker = np.eye(len(p.residuals)) - p.jacobian @ p.normal @ p.jacobian.T
+        maker = p.residual_maker
         # the coordinates grouped by marker, each marker's in a block of its own (q markers)
         order = np.argsort(np.repeat(p.labels, 2), kind="stable")
         present, sizes = np.unique(p.labels, return_counts=True)

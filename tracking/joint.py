@@ -23,6 +23,7 @@ the focal lengths (pixels), with an analytic Jacobian. The covariance of the par
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 
 import cv2
@@ -92,6 +93,14 @@ class WalkerPose:
     residuals: np.ndarray | None = None
     jacobian: np.ndarray | None = None
     labels: np.ndarray | None = None
+
+    @functools.cached_property
+    def residual_maker(self) -> np.ndarray | None:
+        """``M = I - J (J^T J)^-1 J^T`` (2 n, 2 n): the residuals are ``M`` times the corner errors
+        (linearised); None without the Jacobian. Computed once per fit."""
+        if self.jacobian is None:
+            return None
+        return np.eye(len(self.jacobian)) - self.jacobian @ self.normal @ self.jacobian.T
 
     @property
     def seen(self) -> tuple:

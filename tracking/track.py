@@ -646,7 +646,7 @@ class Tracker:
                            poses={**self.poses, "walker": walker},
                            hip_width=self.hip_width,
                            noise={"marker_pixel_sd": {int(k): float(v) for k, v in sorted(marker_sd.items())},
-                                  "frame_scale": _json_ready(prior)},
+                                  "frame_scale": prior},
                            hip_width_source="given" if self.hip_width_given is not None else
                            f"estimated: median of {len(self._width_samples)} frames' joint fits"
                            if self._width_samples else "not measured (no frame showed both legs "
@@ -706,15 +706,6 @@ class Tracker:
             raise TrackError(f"no ramp marker found in any of the {n} frames and the camera file has "
                              "no ramp_pose: the ramp frame is unknown")
         return measured
-
-
-def _json_ready(prior: dict) -> dict:
-    """:func:`moderated_noise_scales`' prior for a JSON file: an infinite prior_dof (the frames as
-    alike as chi-square noise allows) as a word."""
-    dof = prior.get("prior_dof")
-    if dof is not None and math.isinf(dof):
-        return {**prior, "prior_dof": "infinite: the frames' noise alike"}
-    return dict(prior)
 
 
 def _inconsistent_frames(raw: dict) -> np.ndarray:
