@@ -118,14 +118,15 @@ def magnitude(name: str, base=TOY, offsets: bool = True, shift: float = SHIFT) -
     return m, *s
 
 
-def walk(params, seed: int) -> TrajectoryTable:
-    """A simulated walk from the gait with white noise, heel strikes from the first."""
+def walk(params, seed: int, noise: float = NOISE) -> TrajectoryTable:
+    """A simulated walk from the gait with white noise of SD ``noise`` (rad), heel strikes from
+    the first."""
     gait = find_gait(params)
     traj = simulate(params, gait.fixed_point, STEPS)
     rng = np.random.default_rng(seed)
     left, right = traj.pitches()
     signals = {"lean": traj.lean, "steer": traj.steer, "pitch_left": left, "pitch_right": right}
-    signals = {k: v + rng.normal(0.0, NOISE, v.shape) for k, v in signals.items()}
+    signals = {k: v + rng.normal(0.0, noise, v.shape) for k, v in signals.items()}
     events = [{"time": 0.0, "foot": "L"}] + [{"time": e.time, "foot": e.foot} for e in traj.events]
     return TrajectoryTable(traj.times, signals, traj.stance, events, {})
 

@@ -72,8 +72,8 @@ from .measurement import (
 )
 
 __all__ = ["CONTACT_KEYS", "MODELS", "FitError", "FitResult", "PeriodicityTest", "fit", "fit_bounds",
-           "gait_period", "parameter_bounds", "periodicity_test", "score_statistics", "score_tests", "tied",
-           "with_values"]
+           "gait_period", "held_jacobian", "parameter_bounds", "periodicity_test", "score_statistics",
+           "score_tests", "tied", "with_values"]
 
 #: The models of a walk :func:`fit` knows.
 MODELS = ("periodic", "transient")
@@ -1026,14 +1026,28 @@ def score_tests(table: TrajectoryTable, result: FitResult, names) -> dict:
     names = list(names)
     if not names:
         return {}
-    free = list(result.free) + names
+    jac, r = held_jacobian(table, result, names)
+    held = [len(result.free) + k for k in range(len(names))]
+    return dict(zip(names, score_statistics(jac, r, held), strict=True))
+
+
+def held_jacobian(table: TrajectoryTable, result: FitResult, names) -> tuple[np.ndarray, np.ndarray]:
+    """The whitened residuals' Jacobian at the fit ``result`` in its unknowns and in the held
+    parameters ``names`` (the implicit-function theorem through the BVP, as for the fitted ones),
+    and the whitened residuals.
+
+    Returns
+    -------
+    jac : ndarray, shape (n_residuals, n_free + n_names + n_nuisances)
+        Columns: ``result.free``, then ``names``, then the fit's other unknowns (a transient's
+        free start, offsets, the contacts' origin, time offset: :meth:`_Problem.jacobian`).
+    r : ndarray, shape (n_residuals,)
+    """
+    free = list(result.free) + list(names)
     problem, w0 = _setup(table, result.params, free, z_guess=None, check_jacobian=False,
                          priors=result.priors, **result.options)
     x = _continued(problem, w0, result)
-    jac = problem.jacobian(x, result.sigma)
-    r = problem.whitened(x, result.sigma)
-    held = [free.index(n) for n in names]
-    return dict(zip(names, score_statistics(jac, r, held), strict=True))
+    return problem.jacobian(x, result.sigma), problem.whitened(x, result.sigma)
 
 
 def score_statistics(jac: np.ndarray, r: np.ndarray, held) -> list[dict]:

@@ -1,0 +1,103 @@
+"""Which second walk would tell apart the effects that a walk on its cycle cannot?
+
+    python docs/make_tie_design.py            -> docs/tie_design.csv (about 1 min)
+
+On a walk of the stable toy on its cycle the hip's viscous and dry friction and the stance foot's
+pivot friction explain one another's walks (docs/diagnosis.md, "Each effect of the library hidden
+in turn"): their fits come within 1 to 5 in chi-square where the rule asks for 9.2. This measures
+(:mod:`toywalk.sysid.design`: first order, about the base fit) how far apart they come when the
+same toy is also walked under a changed, known condition and the walks are analysed together:
+they share the toy's parameters and the hidden effect, each has its own nuisances.
+
+Walks: as docs/make_diagnose_validation.py's (12 steps from the gait, its sampling, noise 0.002
+rad; the base frees the foot radius and the lateral mass offset, the fit the offsets of lean, steer
+and pitch), noise-free, the noise given to the fit. Hidden: each of the three at the validation
+table's strength (3 noise SDs beyond the base on the toy's own slope). Candidates: the library's
+symmetric effects and held parameters (an uneven build and a cross slope need a stride's BVP and
+are told apart from these by their left-right signature).
+
+Designs: the toy's slope alone (the validation's walk: compare these first-order gaps with the
+fitted ones measured there), the same walk two and three times (as much data, no new condition),
+a second walk on a ramp at 0.8 or 0.6 of the slope (the gait stays stable: max |eigenvalue| 0.974
+and 0.979; at 1.25 times the slope it is 1.0005), or with the balance masses moved 1 cm further
+out or in (``com_offset[1]`` +-0.01 m on the same ramp: a known change to the build), and both
+changes as two more walks.
+"""
+
+from __future__ import annotations
+
+import csv
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).parent))
+from make_diagnose_validation import FREE, NOISE, TOY, walk  # noqa: E402
+from toywalk.sysid.design import separation, walk_columns  # noqa: E402
+from toywalk.sysid.discrepancy import candidates  # noqa: E402
+
+HERE = Path(__file__).parent
+#: The hidden effects at the validation table's strengths (docs/diagnose_effects.csv).
+HIDDEN = {"effects.hip_damping": 4.961e-05, "effects.hip_coulomb": 0.0001796,
+          "effects.pivot_friction": 0.0006535}
+EFFECTS = ["hip_damping", "hip_coulomb", "rolling_resistance", "pivot_friction",
+           "impact_trailing_share", "impact_spin_arrest"]
+SIGNALS = ("lean", "steer", "pitch_left", "pitch_right")
+#: Each design's further walks, as changes to the toy (a slope factor, a lateral offset shift, m).
+DESIGNS = {
+    "one walk": [],
+    "the same walk twice": [{}],
+    "the same walk three times": [{}, {}],
+    "second walk, slope x0.8": [{"slope": 0.8}],
+    "second walk, slope x0.6": [{"slope": 0.6}],
+    "second walk, balance masses 1 cm out": [{"com_offset[1]": 0.01}],
+    "second walk, balance masses 1 cm in": [{"com_offset[1]": -0.01}],
+    "two more walks: slope x0.8, balance masses 1 cm out": [{"slope": 0.8}, {"com_offset[1]": 0.01}],
+}
+
+
+def changed(change: dict):
+    """The toy under a design's change."""
+    if "slope" in change:
+        return TOY.replace(slope=TOY.slope * change["slope"])
+    if "com_offset[1]" in change:
+        offset = list(TOY.com_offset)
+        offset[1] += change["com_offset[1]"]
+        return TOY.replace(com_offset=offset)
+    return TOY
+
+
+def main() -> None:
+    cands = candidates(TOY, FREE, EFFECTS)
+    names = [c.name for c in cands]
+    cache = {}
+
+    def columns(change: dict):
+        key = tuple(sorted(change.items()))
+        if key not in cache:
+            params = changed(change)
+            cache[key] = walk_columns(walk(params, 0, noise=0.0), params, FREE, names, label=str(change),
+                                      model="periodic", noise_sd=dict.fromkeys(SIGNALS, NOISE))
+        return cache[key]
+
+    out = HERE / "tie_design.csv"
+    tmp = out.with_name(out.name + ".tmp")
+    rows = []
+    for design, extra in DESIGNS.items():
+        walks = [columns({})] + [columns(c) for c in extra]
+        for r in separation(walks, cands, HIDDEN, rng=7):
+            rows.append({"design": design, "walks": len(walks), "hidden": r["hidden"],
+                         "lr": f"{r['lr']:.1f}", "nearest": r["nearest"], "gap": f"{r['gap']:.1f}",
+                         "named_rate": f"{r['named_rate']:.3f}",
+                         **{f"gap_{n.removeprefix('effects.')}": f"{g:.1f}" for n, g in r["gaps"].items()}})
+        print(design, "; ".join(f"{r['hidden']} {r['gap']} ({r['nearest']}) {r['named_rate']}"
+                                for r in rows[-len(HIDDEN):]), flush=True)
+    fields = list(dict.fromkeys(k for r in rows for k in r))
+    with open(tmp, "w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=fields, restval="")
+        writer.writeheader()
+        writer.writerows(rows)
+    tmp.replace(out)
+
+
+if __name__ == "__main__":
+    main()
