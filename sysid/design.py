@@ -40,6 +40,7 @@ from toywalk.model.trajectory import TrajectoryTable
 
 from .discrepancy import ALPHA, SEPARATION, Candidate, lr_p_value
 from .fit import fit, held_jacobian
+from .walks import stacked
 
 __all__ = ["DesignError", "WalkColumns", "separation", "walk_columns"]
 
@@ -89,17 +90,6 @@ def walk_columns(table: TrajectoryTable, params: Params, free: Sequence[str],
     return WalkColumns(jac[:, :k], jac[:, k:], free + candidates, len(free), label)
 
 
-def _stacked(walks: Sequence[WalkColumns]) -> tuple[np.ndarray, np.ndarray]:
-    """Shared columns stacked, nuisance columns block-diagonal."""
-    shared = np.vstack([w.shared for w in walks])
-    nuisance = np.zeros((len(shared), sum(w.nuisance.shape[1] for w in walks)))
-    row = col = 0
-    for w in walks:
-        nuisance[row:row + len(w.shared), col:col + w.nuisance.shape[1]] = w.nuisance
-        row, col = row + len(w.shared), col + w.nuisance.shape[1]
-    return shared, nuisance
-
-
 def separation(walks: Sequence[WalkColumns], candidates: Sequence[Candidate], hidden: dict, *,
                draws: int = 2000, alpha: float = ALPHA, rng=None) -> list[dict]:
     """How far apart the walks, analysed together, bring each hidden cause and the other
@@ -138,7 +128,7 @@ def separation(walks: Sequence[WalkColumns], candidates: Sequence[Candidate], hi
     unknown = [n for n in list(by_name) + list(hidden) if n not in names[walks[0].n_free:]]
     if unknown:
         raise DesignError(f"not among the walks' candidates: {', '.join(unknown)}")
-    shared, nuisance = _stacked(walks)
+    shared, nuisance = stacked([w.shared for w in walks], [w.nuisance for w in walks])
     fitted = np.hstack([shared[:, :walks[0].n_free], nuisance])
     u, sv, _ = np.linalg.svd(fitted, full_matrices=False)
     basis = u[:, sv > sv[0] * max(fitted.shape) * np.finfo(float).eps] if len(sv) else u

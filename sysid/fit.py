@@ -663,6 +663,9 @@ class _Problem:
             g = ca.vertcat(g, trav - ca.vec(rolled) / self.c_scale,
                            disp - ca.mtimes(summed, trav) - ca.vec(jump) / self.c_scale)
             self.lbg, self.ubg = np.r_[self.lbg, np.zeros(n_d + n_t)], np.r_[self.ubg, np.zeros(n_d + n_t)]
+        # The NLP as a function, so that several walks' NLPs can be joined into one
+        # (toywalk.sysid.walks: shared parameters, each walk its own gait and nuisances).
+        self.nlp_fn = ca.Function("nlp", [x, ca.vertcat(inv_sd_all, stage)], [f, g])
         self.residuals_fn = ca.Function("residuals", [x, inv_sd_all, stage], [residuals])
         self.residuals_jac = ca.Function("residuals_jac", [x, inv_sd_all, stage],
                                          [ca.jacobian(residuals, x)])

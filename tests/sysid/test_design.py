@@ -5,15 +5,14 @@ walk of the stable toy."""
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
-from toywalk.model.gait import find_gait
 from toywalk.model.parameters import load_params
-from toywalk.model.simulate import simulate
 from toywalk.model.trajectory import TrajectoryTable
 from toywalk.sysid.design import DesignError, WalkColumns, separation, walk_columns
 from toywalk.sysid.discrepancy import ALPHA, SEPARATION, Candidate, candidates, lr_p_value
 from toywalk.sysid.fit import fit
 
 from ..conftest import DATA
+from .test_fit import _walk
 
 NAMES = ["free", "a", "b", "c"]
 
@@ -22,7 +21,7 @@ def _candidate(name: str, side: int) -> Candidate:
     return Candidate(name, "effect", 0.0, (0.0, 1.0) if side else (-1.0, 1.0), side, 1.0, False)
 
 
-def _walk(rng, rows: int, b_like_a: float) -> WalkColumns:
+def _columns(rng, rows: int, b_like_a: float) -> WalkColumns:
     """Random whitened columns: one free parameter, candidates a, b (``b_like_a`` of it along a)
     and c, two nuisances."""
     free, a, c, other = rng.normal(size=(4, rows))
@@ -58,8 +57,8 @@ def test_separation_equals_refits_of_the_stacked_design():
     on its bound gets none when its fit would leave the bound; the gap to a near-copy of the
     hidden column is small, and a second walk where the two differ widens it."""
     rng = np.random.default_rng(3)
-    one = [_walk(rng, 60, 0.97)]
-    two = one + [_walk(rng, 60, 0.0)]
+    one = [_columns(rng, 60, 0.97)]
+    two = one + [_columns(rng, 60, 0.0)]
     cands = [_candidate("a", 1), _candidate("b", 0), _candidate("c", 1)]
     for walks in (one, two):
         change = 0.4
@@ -84,7 +83,7 @@ def test_named_rate_is_the_rules_share_of_noisy_refits():
     draw by draw (the same noise: the reference draws in the full space, the module in the
     candidates' span; so compared in distribution, 400 draws each, binomial SD 0.025)."""
     rng = np.random.default_rng(5)
-    walks = [_walk(rng, 40, 0.9)]
+    walks = [_columns(rng, 40, 0.9)]
     cands = [_candidate("a", 1), _candidate("b", 1), _candidate("c", 1)]
     change = 5.0  # expected gap to b 9.8, the rule's margin 9.2: the noise decides
     fast = separation(walks, cands, {"a": change}, draws=4000, rng=1)[0]
@@ -106,7 +105,7 @@ def test_named_rate_is_the_rules_share_of_noisy_refits():
 
 def test_bad_walks_are_refused():
     rng = np.random.default_rng(0)
-    w = _walk(rng, 20, 0.5)
+    w = _columns(rng, 20, 0.5)
     with pytest.raises(DesignError, match="no walks"):
         separation([], [_candidate("a", 1)], {"a": 1.0})
     with pytest.raises(DesignError, match="not among"):
@@ -124,11 +123,7 @@ DAMPING = 4.961e-05
 
 
 def _noise_free(params) -> TrajectoryTable:
-    traj = simulate(params, find_gait(params).fixed_point, 12)
-    left, right = traj.pitches()
-    signals = {"lean": traj.lean, "steer": traj.steer, "pitch_left": left, "pitch_right": right}
-    events = [{"time": 0.0, "foot": "L"}] + [{"time": e.time, "foot": e.foot} for e in traj.events]
-    return TrajectoryTable(traj.times, signals, traj.stance, events, {})
+    return _walk(params, 12, 0.0, 0)[0]
 
 
 @pytest.mark.slow

@@ -1,0 +1,229 @@
+"""Several walks of one walker fitted together: shared parameters, each walk its own gait.
+
+The same toy filmed on two ramps, or with a balance mass moved by a known amount, is one walker
+under known, different conditions. Its unknown properties (a foot radius, a hinge's friction) are
+the same in every walk; each walk has its own gait, its own nuisances (offsets of lean, steer and
+pitch, its clock) and its own noise. :func:`fit_walks` fits them as one problem: each walk's
+collocation NLP (:func:`toywalk.sysid.fit.fit`'s), joined into one IPOPT problem whose free
+parameters are tied across the walks by equalities. What is shared is each free parameter's
+**change** from its value in the walk's own parameter file, so a walk's known condition (its
+slope, its moved mass) stays as given and an error common to all (a slope misread by the same
+amount, a mass offset the builder got wrong) is estimated once.
+
+Why: a walk on its cycle can leave candidate causes tied (docs/diagnosis.md, "What a walk on its
+cycle cannot tell apart"); walks under other conditions see them along other directions
+(:mod:`toywalk.sysid.design` says which walks to film).
+
+Procedure: the joint problem starts from each walk's gait at its file's parameters and is
+solved as a single walk's fit is: aligned on the measured strikes first, then on the model's
+strikes. (Started from each walk's own fit instead, the base model of the stable toy with hip dry
+friction hidden had wandered to a lateral mass offset of -0.12 and -0.67 m, against 0.19, in
+single fits of two walks that it fits nearly as well that way, and the joint problem from there
+did not converge.) The noise of each walk is its file's SDs, the given ``noise_sd``, or its
+samples' own scatter: never a residual RMS, which a base model's misfit inflates. The covariance of
+the shared changes is the inverse information of the walks' Jacobians stacked: shared columns one
+above the other, each walk's nuisances in its own rows (:meth:`_Problem.jacobian`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Sequence
+
+import casadi as ca
+import numpy as np
+from toywalk.model.parameters import Params
+from toywalk.model.trajectory import TrajectoryTable
+
+from .fit import FitError, _contact_sigma, _continued, _setup, _sigma_from
+from .residuals import scatter_noise
+
+__all__ = ["WalksFit", "fit_walks", "stacked"]
+
+
+@dataclasses.dataclass
+class WalksFit:
+    """The joint fit of several walks (:func:`fit_walks`).
+
+    Attributes
+    ----------
+    free : list of str
+        The shared parameters.
+    change, std : dict of str to float
+        Each shared parameter's change from the walks' files, and its standard error.
+    estimates : dict of str to float
+        The first walk's parameters (its file's values plus the changes).
+    covariance : ndarray, shape (n_free, n_free)
+        Of the changes.
+    chi2 : float
+        Summed over the walks; ``n_residuals`` in all.
+    walks : list of FitResult
+        Each walk at the joint solution (its gait, residuals, nuisances, chi-square).
+    success : bool
+    status : str
+        IPOPT's return status of the joint problem.
+    seconds : float
+    """
+
+    free: list
+    change: dict
+    std: dict
+    estimates: dict
+    covariance: np.ndarray
+    chi2: float
+    n_residuals: int
+    walks: list
+    success: bool
+    status: str
+    seconds: float = 0.0
+
+    def interval(self, name: str, z: float = 1.959964) -> tuple[float, float]:
+        """The 95 % (``z``) interval of ``name``'s value in the first walk's terms."""
+        return (self.estimates[name] - z * self.std[name], self.estimates[name] + z * self.std[name])
+
+
+def stacked(shared: Sequence[np.ndarray], nuisance: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Several walks' Jacobian columns as one problem's: the shared unknowns' columns (each walk's
+    shape (n_k, s)) one above the other, the nuisances' (n_k, m_k) block-diagonal, each in its
+    walk's rows. Returns the shared (sum n_k, s) and nuisance (sum n_k, sum m_k) columns."""
+    rows = sum(len(a) for a in shared)
+    block = np.zeros((rows, sum(b.shape[1] for b in nuisance)))
+    r = c = 0
+    for a, b in zip(shared, nuisance, strict=True):
+        block[r:r + len(a), c:c + b.shape[1]] = b
+        r, c = r + len(a), c + b.shape[1]
+    return np.vstack(shared), block
+
+
+def fit_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], free, *,
+              noise_sd: dict | None = None, warm: WalksFit | None = None, max_iter: int = 500,
+              model: str = "periodic", offsets: bool = True, strikes: str = "model") -> WalksFit:
+    """Fit ``free`` parameters shared by the walks ``tables``, walk ``i`` of the walker
+    ``params[i]`` (module docstring).
+
+    Parameters
+    ----------
+    tables : sequence of TrajectoryTable
+        The walks (at least one).
+    params : sequence of Params
+        Each walk's walker: the same walker under that walk's known condition.
+    free : sequence of str
+        Parameter-file names whose change is shared (``foot_radius``, ``effects.hip_damping``).
+    noise_sd : dict, optional
+        Noise SD per signal (rad) for every walk. Without it, a walk's file SDs (the tracker's
+        ``*_sd`` columns) weigh it, else its samples' own scatter within each step
+        (:func:`toywalk.sysid.residuals.scatter_noise`: no model's misfit inflates it).
+    warm : WalksFit, optional
+        A joint fit of the same walks with fewer free parameters (the base, for a candidate):
+        the start, with the new parameters at their files' values.
+    max_iter : int
+        IPOPT's iteration cap.
+    model, offsets, strikes
+        As :func:`toywalk.sysid.fit.fit`'s, for every walk.
+
+    Raises
+    ------
+    FitError
+        Bad input, or a walk whose noise cannot be had (the message says which).
+    """
+    clock = time.perf_counter()
+    tables, params, free = list(tables), list(params), list(free)
+    if not tables or len(tables) != len(params):
+        raise FitError(f"need one parameter set per walk, at least one walk: got {len(tables)} walks "
+                       f"and {len(params)} parameter sets")
+    if warm is not None and (len(warm.walks) != len(tables) or not set(warm.free) <= set(free)):
+        raise FitError("warm must be a joint fit of the same walks with a subset of these free parameters")
+    problems, starts, sigmas, sources = [], [], [], []
+    for k, (table, walker) in enumerate(zip(tables, params, strict=True)):
+        problem, w0 = _setup(table, walker, free, model=model, offsets=offsets, n_intervals=None,
+                             degree=None, z_guess=None, max_iter=max_iter, check_jacobian=False,
+                             priors={}, strikes=strikes)
+        obs = problem.obs
+        if noise_sd is not None:
+            sigma, source = _sigma_from(noise_sd, obs), "given"
+        elif obs.sd_known:
+            sigma, source = obs.sd.copy(), "file"
+        else:
+            scatter = {n: v["sd"] for n, v in scatter_noise(obs).items()}
+            if not all(math.isfinite(v) and v > 0 for v in scatter.values()):
+                raise FitError(f"walk {k + 1}: too few samples within its steps to measure its noise; "
+                               "give noise_sd")
+            sigma, source = _sigma_from(scatter, obs), "scatter within steps"
+        sigma_c, source_c = _contact_sigma(problem.path, noise_sd)
+        if source_c == "estimated from residuals":
+            raise FitError(f"walk {k + 1} has contact positions without SDs: give noise_sd with "
+                           "their SDs or drop them")
+        x = problem.start(w0)
+        if warm is not None:
+            done = warm.walks[k]
+            x = _continued(problem, w0, done)
+            n_w = problem.n_w
+            for j, name in enumerate(free):
+                if name in done.estimates:
+                    x[n_w + j] = (done.estimates[name] - problem.theta0[j]) / problem.scale[j]
+        problems.append(problem)
+        starts.append(x)
+        sigmas.append(np.r_[sigma, sigma_c])
+        sources.append((source, source_c))
+    sizes = [len(x) for x in starts]
+    at = np.r_[0, np.cumsum(sizes)]
+    xs = ca.MX.sym("x", int(at[-1]))
+    p_sizes = [pr.nlp_fn.size1_in(1) for pr in problems]
+    p_at = np.r_[0, np.cumsum(p_sizes)]
+    ps = ca.MX.sym("p", int(p_at[-1]))
+    f, gs, lbg, ubg = 0, [], [], []
+    for k, pr in enumerate(problems):
+        fk, gk = pr.nlp_fn(xs[int(at[k]):int(at[k + 1])], ps[int(p_at[k]):int(p_at[k + 1])])
+        f += fk
+        gs.append(gk)
+        lbg.append(pr.lbg)
+        ubg.append(pr.ubg)
+    # The shared changes: walk k's scaled unknown times its scale equals walk 0's.
+    first = problems[0]
+    for k, pr in enumerate(problems[1:], start=1):
+        for j in range(len(free)):
+            gs.append(pr.scale[j] * xs[int(at[k]) + pr.n_w + j] - first.scale[j] * xs[first.n_w + j])
+            lbg.append([0.0])
+            ubg.append([0.0])
+    solver = ca.nlpsol("walks", "ipopt", {"x": xs, "p": ps, "f": f, "g": ca.vertcat(*gs)}, {
+        "ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
+        "ipopt.tol": 1e-10, "ipopt.max_iter": max_iter})
+    lbx, ubx = np.concatenate([pr.lbx for pr in problems]), np.concatenate([pr.ubx for pr in problems])
+    lbg, ubg = np.concatenate(lbg), np.concatenate(ubg)
+    # As each walk's fit: first aligned on the measured strikes (clocks held), then, where the
+    # fit reads the walk between the model's strikes, on those from there; from a warm start the
+    # second stage only.
+    x_all = np.concatenate(starts)
+    stages = [1.0] if warm is not None and strikes == "model" else \
+        sorted({0.0, 1.0 if strikes == "model" else 0.0})
+    for stage in stages:
+        p_value = np.concatenate([np.r_[1.0 / sg, stage] for sg in sigmas])
+        lo, hi = lbx.copy(), ubx.copy()
+        if stage == 0.0:
+            clocks = at[1:] - 1  # each walk's last unknown: its time offset
+            lo[clocks] = hi[clocks] = 0.0
+        sol = solver(x0=x_all, p=p_value, lbx=lo, ubx=hi, lbg=lbg, ubg=ubg)
+        x_all = np.array(sol["x"]).ravel()
+        stats = solver.stats()
+        if not stats["success"]:
+            break
+    walks, shared, nuisances = [], [], []
+    for k, (pr, sigma, (source, source_c)) in enumerate(zip(problems, sigmas, sources, strict=True)):
+        xk = x_all[int(at[k]):int(at[k + 1])]
+        walks.append(pr.result(xk, stats, sigma, source, source_c))
+        jac = pr.jacobian(xk, sigma)
+        shared.append(jac[:, :len(free)])
+        nuisances.append(jac[:, len(free):])
+    jac = np.hstack(stacked(shared, nuisances))
+    cov = np.linalg.pinv(jac.T @ jac)[:len(free), :len(free)]
+    theta = first.theta(x_all[:int(at[1])])
+    change = {n: float(theta[j] - first.theta0[j]) for j, n in enumerate(free)}
+    std = {n: float(math.sqrt(max(cov[j, j], 0.0))) for j, n in enumerate(free)}
+    return WalksFit(free=free, change=change, std=std,
+                    estimates={n: float(theta[j]) for j, n in enumerate(free)}, covariance=cov,
+                    chi2=float(sum(w.chi2 for w in walks)),
+                    n_residuals=int(sum(w.n_residuals for w in walks)),
+                    walks=walks, success=bool(stats["success"]), status=str(stats["return_status"]),
+                    seconds=time.perf_counter() - clock)
