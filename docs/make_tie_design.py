@@ -1,6 +1,7 @@
 """Which second walk would tell apart the effects that a walk on its cycle cannot?
 
     python docs/make_tie_design.py            -> docs/tie_design.csv (about 1 min)
+    python docs/make_tie_design.py joint      -> docs/tie_joint.csv (about 8 min)
 
 On a walk of the stable toy on its cycle the hip's viscous and dry friction and the stance foot's
 pivot friction explain one another's walks (docs/diagnosis.md, "Each effect of the library hidden
@@ -22,6 +23,12 @@ a second walk on a ramp at 0.8 or 0.6 of the slope (the gait stays stable: max |
 and 0.979; at 1.25 times the slope it is 1.0005), or with the balance masses moved 1 cm further
 out or in (``com_offset[1]`` +-0.01 m on the same ramp: a known change to the build), and both
 changes as two more walks.
+
+``joint`` checks the last design by analysing the walks together
+(:func:`toywalk.sysid.walks.diagnose_walks`): each of the three effects hidden in the three walks
+(toy's slope, 0.8 of it, balance masses 1 cm out; 12 steps each, 0.002 rad of white noise, seeds
+600 + 10 i + walk), the base freeing the foot radius and lateral offset, the three effects and the
+slope the candidates; each walk weighed by its samples' scatter.
 """
 
 from __future__ import annotations
@@ -34,6 +41,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 from make_diagnose_validation import FREE, NOISE, TOY, walk  # noqa: E402
 from toywalk.sysid.design import separation, walk_columns  # noqa: E402
 from toywalk.sysid.discrepancy import candidates  # noqa: E402
+from toywalk.sysid.walks import diagnose_walks  # noqa: E402
 
 HERE = Path(__file__).parent
 #: The hidden effects at the validation table's strengths (docs/diagnose_effects.csv).
@@ -99,5 +107,42 @@ def main() -> None:
     tmp.replace(out)
 
 
+def joint() -> None:
+    out = HERE / "tie_joint.csv"
+    tmp = out.with_name(out.name + ".tmp")
+    bases = [TOY, *(changed(c) for c in DESIGNS["two more walks: slope x0.8, balance masses 1 cm out"])]
+    fields = ["hidden", "truth", "verdict", "cause", "candidate", "status", "chi2", "behind", "lr",
+              "estimate", "low", "high", "holds", "base_status", "base_chi2", "seconds"]
+    with open(tmp, "w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=fields, restval="")
+        writer.writeheader()
+        for i, (name, strength) in enumerate(HIDDEN.items()):
+            tables = [walk(b.replace(**{name: strength}), 600 + 10 * i + k) for k, b in enumerate(bases)]
+            d = diagnose_walks(tables, bases, free=FREE, parameters=["slope"],
+                               effects=[h.removeprefix("effects.") for h in HIDDEN])
+            best = min(f.chi2 for f in d.extended.values() if f.success)
+            for r in d.ranking:
+                f = d.extended.get(r["effect"])
+                row = {"hidden": name, "truth": f"{strength:.4g}", "verdict": d.verdict, "cause": d.cause,
+                       "candidate": r["effect"], "base_status": d.base.status,
+                       "base_chi2": f"{d.gain['base']:.1f}", "seconds": f"{d.seconds:.0f}"}
+                if f is not None:
+                    row.update(status=f.status, chi2=f"{f.chi2:.1f}", behind=f"{f.chi2 - best:.1f}")
+                if "lr" in r:
+                    low, high = r["interval"][r["effect"]]
+                    row.update(lr=f"{r['lr']:.1f}", estimate=f"{r['estimate'][r['effect']]:.4g}",
+                               low=f"{low:.4g}", high=f"{high:.4g}",
+                               holds=(low < strength < high) if r["effect"] == name else "")
+                writer.writerow(row)
+                fh.flush()
+            print(name, d.verdict, d.cause, d.evidence, flush=True)
+    tmp.replace(out)
+
+
 if __name__ == "__main__":
-    main()
+    if sys.argv[1:2] == ["joint"]:
+        joint()
+    elif sys.argv[1:]:
+        sys.exit(__doc__)
+    else:
+        main()

@@ -9,7 +9,7 @@ from numpy.testing import assert_allclose
 from toywalk.model.parameters import load_params
 from toywalk.sysid.discrepancy import SEPARATION
 from toywalk.sysid.fit import FitError, fit
-from toywalk.sysid.walks import fit_walks
+from toywalk.sysid.walks import diagnose_walks, fit_walks
 
 from ..conftest import DATA
 from .test_fit import _walk
@@ -53,24 +53,26 @@ def test_bad_input_is_refused(toy):
 
 
 @pytest.mark.slow
-def test_three_walks_tell_dry_from_viscous_hip_friction(toy):
+def test_three_walks_name_hip_dry_friction(toy):
     """The stable toy with hip dry friction hidden (3 noise SDs beyond the base, as in
     docs/diagnose_effects.csv), walked on its ramp, on one at 0.8 of the slope and with its balance
-    masses 1 cm further out (docs/diagnosis.md, "Which second walk breaks the ties"): fitted
-    together, dry friction explains the walks better than the viscous damper by more than the
-    rule's margin, where one walk leaves them 1 to 4 apart; its interval holds the truth."""
+    masses 1 cm further out (docs/diagnosis.md, "Which second walk breaks the ties"), analysed
+    together with the three friction effects and the slope as candidates: dry friction is named,
+    ahead of the viscous damper by more than the rule's margin (one walk leaves them 1 to 4
+    apart), and its interval holds the truth."""
     truth = 1.796e-4  # N m
     offset = list(toy.com_offset)
     offset[1] += 0.01
     bases = [toy, toy.replace(slope=0.8 * toy.slope), toy.replace(com_offset=offset)]
     tables = [_walk(b.replace(**{"effects.hip_coulomb": truth}), 12, 0.002, 500 + k)[0]
               for k, b in enumerate(bases)]
-    dry = fit_walks(tables, bases, FREE + ["effects.hip_coulomb"])
-    viscous = fit_walks(tables, bases, FREE + ["effects.hip_damping"])
-    assert dry.success and viscous.success
-    # first order 149 (docs/tie_design.csv); measured 173.9 here, 156.3 on seeds 400-402
-    assert viscous.chi2 - dry.chi2 > SEPARATION
-    low, high = dry.interval("effects.hip_coulomb")
+    d = diagnose_walks(tables, bases, free=FREE, effects=["hip_damping", "hip_coulomb", "pivot_friction"],
+                       parameters=["slope"])
+    assert d.cause == "effects.hip_coulomb", d.evidence
+    row = {r["effect"]: r for r in d.ranking}
+    # first order 149 (docs/tie_design.csv); fitted 173.9 on these seeds, 156.3 on seeds 400-402
+    assert row["effects.hip_coulomb"]["lr"] - row["effects.hip_damping"]["lr"] > SEPARATION
+    low, high = row["effects.hip_coulomb"]["interval"]["effects.hip_coulomb"]
     assert low < truth < high  # measured 1.770e-4 [1.715e-4, 1.825e-4]
     # every walk weighed by its own samples' scatter (no noise given, no SDs in the files)
-    assert {w.noise_source for w in dry.walks} == {"scatter within steps"}
+    assert {w.noise_source for w in d.base.walks} == {"scatter within steps"}
