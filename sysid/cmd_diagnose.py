@@ -1,5 +1,9 @@
 """``toywalk diagnose M.csv --params P.toml --out REPORT_DIR``: what the model gets wrong, the
-cause named, the gain measured (:mod:`toywalk.sysid.discrepancy`)."""
+cause named, the gain measured (:mod:`toywalk.sysid.discrepancy`).
+
+Several walks of one walker under known conditions (``toywalk diagnose A.csv B.csv --params
+A.toml --params B.toml``: one parameter file per walk, or one for all) are analysed together
+(:func:`toywalk.sysid.walks.diagnose_walks`)."""
 
 from __future__ import annotations
 
@@ -8,11 +12,14 @@ __all__ = ["cmd_diagnose", "register"]
 
 def register(subparsers) -> None:
     p = subparsers.add_parser("diagnose", help="find what the model lacks and name the cause")
-    p.add_argument("trajectory", metavar="M.csv",
+    p.add_argument("trajectory", metavar="M.csv", nargs="+",
                    help="the measured walk, or a gait's summary statistics (a CSV with the "
                         "columns quantity, value, unit, stated, resolution, note, as "
-                        "data/paper/measurements.csv)")
-    p.add_argument("--params", required=True, help="the base model's parameter file")
+                        "data/paper/measurements.csv); several walks of one walker under known, "
+                        "different conditions (slope, a moved mass) are analysed together")
+    p.add_argument("--params", required=True, action="append",
+                   help="the base model's parameter file; with several walks, one per walk (its "
+                        "condition), in their order, or one for all")
     p.add_argument("--free", default="", help="base parameters to fit (comma-separated names)")
     p.add_argument("--effects", help="restrict the candidate effects (comma-separated names)")
     p.add_argument("--parameters",
@@ -49,6 +56,11 @@ def cmd_diagnose(args) -> int:
         raise CommandError(f"--out must name a folder, got the file {out}")
     if not out.parent.is_dir():
         raise CommandError(f"output folder's parent does not exist: {out.parent}")
+    if len(args.trajectory) > 1:
+        return _walks(args, out)
+    if len(args.params) > 1:
+        raise CommandError(f"one walk takes one --params, got {len(args.params)}")
+    args.trajectory, args.params = args.trajectory[0], args.params[0]
     params = _load(args.params)
     if is_summary_file(args.trajectory):
         return _summary(args, params, out)
@@ -127,6 +139,65 @@ def _free(args) -> list[str]:
         raise CommandError(f"--free: {unknown[0]!r} is not a parameter (names are those of a "
                            "parameter file: foot_radius, com_offset[1], effects.hip_damping, ...)")
     return free
+
+
+def _walks(args, out) -> int:
+    """diagnose on several walks together (:func:`toywalk.sysid.walks.diagnose_walks`)."""
+    from toywalk.model.parameters import ParameterError
+    from toywalk.model.trajectory import read_trajectory
+    from toywalk.sysid.cli import CommandError, _load, _version
+    from toywalk.sysid.diagnosis_report import write_walks_diagnosis
+    from toywalk.sysid.discrepancy import DiagnoseError, candidates
+    from toywalk.sysid.fit import FitError, periodicity_test
+    from toywalk.sysid.measurement import MeasurementError, observations
+    from toywalk.sysid.summary import is_summary_file
+    from toywalk.sysid.walks import diagnose_walks
+
+    paths = list(args.trajectory)
+    files = list(args.params) * len(paths) if len(args.params) == 1 else list(args.params)
+    if len(files) != len(paths):
+        raise CommandError(f"{len(paths)} walks need one --params each or one for all, got "
+                           f"{len(args.params)}")
+    if args.workers is not None or args.scheduler is not None:
+        raise CommandError("--workers and --scheduler apply to one walk; several walks are "
+                           "analysed in this process")
+    params = [_load(f) for f in files]
+    tables = []
+    for path in paths:
+        if is_summary_file(path):
+            raise CommandError(f"{path} holds summary statistics: those are analysed one file at a time")
+        try:
+            table = read_trajectory(path)
+            observations(table)
+        except (OSError, ValueError) as err:
+            raise CommandError(f"{path}: {err}") from err
+        tables.append(table)
+    alpha = _alpha(args)
+    free = _free(args)
+    try:
+        candidates(params[0], free, _split(args.effects), _split(args.parameters))
+        model = args.model
+        if model == "auto":  # one model for all: the transient when any walk is off its cycle
+            chosen = []
+            for k, (table, walker) in enumerate(zip(tables, params, strict=True), start=1):
+                _say(f"periodicity test of walk {k} (is it on the model's limit cycle?)")
+                chosen.append(periodicity_test(table, walker, free, check_jacobian=False).chosen.model)
+            model = "transient" if "transient" in chosen else "periodic"
+        result = diagnose_walks(tables, params, free=free, effects=_split(args.effects),
+                                parameters=_split(args.parameters), alpha=alpha, model=model,
+                                progress=_say)
+    except (DiagnoseError, FitError, MeasurementError, ParameterError) as err:
+        raise CommandError(str(err)) from err
+    write_walks_diagnosis(result, out, {"trajectories": paths, "params": files, "free": free,
+                                        "model": model, "software": _version()})
+    print(f"verdict: {result.verdict}; cause: {result.cause} ({len(paths)} walks together)")
+    print(f"evidence: {result.evidence}")
+    for row in result.ranking[:5]:
+        extra = (f", likelihood ratio {row['lr']:.1f} (p = {row['lr_p']:.2g})" if "lr" in row else "")
+        z = f"score z {row['score_z']:+.2f}" if "score_z" in row else "not screened"
+        print(f"  {row['effect']:<32s} {z}{extra}")
+    print(f"report -> {out / 'report.md'}")
+    return 0
 
 
 def _summary(args, params, out) -> int:

@@ -23,7 +23,7 @@ from toywalk.model.files import atomic_write_json, atomic_write_text, strict_jso
 from .diagnostics import _save
 from .discrepancy import Diagnosis
 
-__all__ = ["numbers_figure", "write_diagnosis", "write_summary_diagnosis"]
+__all__ = ["numbers_figure", "write_diagnosis", "write_summary_diagnosis", "write_walks_diagnosis"]
 
 
 def write_diagnosis(diagnosis: Diagnosis, folder: Path, inputs: dict | None = None) -> list[Path]:
@@ -270,4 +270,62 @@ def _summary_markdown(d) -> str:
         if s["no_gait"]:
             lines.append("No gait a small step from the base for: " + ", ".join(s["no_gait"]) + ".")
     lines += ["", f"Time: {d.seconds.get('total', math.nan):.0f} s.", ""]
+    return "\n".join(lines)
+
+
+def write_walks_diagnosis(diagnosis, folder: Path, inputs: dict | None = None) -> list[Path]:
+    """The report of :func:`toywalk.sysid.walks.diagnose_walks` (several walks analysed together):
+    report.json, report.md and ``candidates.png`` (each candidate's score statistic and
+    likelihood ratio, all walks together)."""
+    return _write_report(Path(folder), diagnosis, inputs, _walks_markdown(diagnosis),
+                         lambda f: [_walks_candidate_figure(diagnosis, f)])
+
+
+def _walks_candidate_figure(d, folder: Path) -> Path:
+    from matplotlib.figure import Figure
+    from scipy import stats
+
+    rows = d.ranking
+    fig = Figure(figsize=(8, 0.3 * len(rows) + 1.2))
+    ax = fig.subplots()
+    y = np.arange(len(rows))[::-1]
+    ax.barh(y + 0.2, [r.get("score_z", 0.0) ** 2 for r in rows], height=0.4, color="C7",
+            label="score statistic z^2 (screening)")
+    ax.barh(y - 0.2, [max(r.get("lr", 0.0), 0.0) for r in rows], height=0.4, color="C2",
+            label="likelihood ratio (fitted, all walks)")
+    ax.axvline(stats.chi2.isf(d.alpha / len(rows), 1), color="k", ls="--", lw=0.8,
+               label=f"alpha / K = {d.alpha:g} / {len(rows)}")
+    ax.set_xscale("symlog", linthresh=10)
+    ax.set_yticks(y, [r["effect"] for r in rows], fontsize=7)
+    ax.legend(fontsize=7)
+    return _finish(fig, folder / "candidates.png")
+
+
+def _walks_markdown(d) -> str:
+    lines = [f"# Discrepancy analysis of {len(d.base.walks)} walks together", "",
+             f"**Verdict:** {d.verdict}. **Cause:** {d.cause if d.cause is not None else 'none'}.", "",
+             f"Evidence: {d.evidence}.", "",
+             f"Rule: {d.rule} (alpha = {d.alpha:g}, K = {len(d.ranking)} candidates).", "",
+             "## The walks (base fit)", "",
+             "| walk | chi-square | residuals | noise (rad) | noise from | max abs eigenvalue |",
+             "| --- | --- | --- | --- | --- | --- |"]
+    for k, w in enumerate(d.base.walks, start=1):
+        noise = ", ".join(f"{n} {v:.3g}" for n, v in w.noise_sd.items())
+        lines.append(f"| {k} | {w.chi2:.1f} | {w.n_residuals} | {noise} | {w.noise_source} | "
+                     f"{_num(w.gait.get('max_abs_eigenvalue'), '.4g')} |")
+    lines += ["", f"Base: chi-square {d.base.chi2:.1f} on {d.base.n_residuals} residuals "
+              f"({d.base.status}); shared changes: "
+              + (", ".join(f"{n} {d.base.change[n]:+.4g} +- {d.base.std[n]:.2g}" for n in d.base.free)
+                 or "none") + ".", "",
+              "## Candidates", "", "![candidates](candidates.png)", "",
+              "| candidate | score z | likelihood ratio | p | estimate | 95 % interval |",
+              "| --- | --- | --- | --- | --- | --- |"]
+    for r in d.ranking:
+        name = r["effect"]
+        est = r.get("estimate", {}).get(name)
+        low, high = r.get("interval", {}).get(name, (None, None))
+        lines.append(f"| {name} | {_num(r.get('score_z'), '+.2f')} | {_num(r.get('lr'), '.1f')} | "
+                     f"{_num(r.get('lr_p'), '.2g')} | {_num(est, '.4g')} | "
+                     + (f"[{low:.4g}, {high:.4g}]" if low is not None else "-") + " |")
+    lines.append("")
     return "\n".join(lines)

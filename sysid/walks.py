@@ -47,7 +47,16 @@ from .discrepancy import (
     candidates,
     lr_p_value,
 )
-from .fit import FitError, _contact_sigma, _continued, _setup, _sigma_from, held_jacobian, score_statistics
+from .fit import (
+    FitError,
+    FitResult,
+    _contact_sigma,
+    _continued,
+    _setup,
+    _sigma_from,
+    held_jacobian,
+    score_statistics,
+)
 from .residuals import scatter_noise
 
 __all__ = ["WALKS_RULE", "WalksDiagnosis", "WalksFit", "diagnose_walks", "fit_walks", "stacked"]
@@ -261,6 +270,24 @@ class WalksDiagnosis(Verdict):
     rule: str
     alpha: float
     seconds: float = 0.0
+
+    def to_json(self) -> dict:
+        """``report.json`` (pipeline.md's fields, and each walk's base fit)."""
+        def walk_json(w: FitResult) -> dict:
+            return {"estimates": w.estimates, "chi2": w.chi2, "n_residuals": w.n_residuals,
+                    "noise_sd": w.noise_sd, "noise_source": w.noise_source, "status": w.status,
+                    "max_abs_eigenvalue": w.gait.get("max_abs_eigenvalue")}
+
+        def fit_json(f: WalksFit) -> dict:
+            return {"free": f.free, "change": f.change, "std": f.std, "estimates": f.estimates,
+                    "chi2": f.chi2, "n_residuals": f.n_residuals, "success": f.success,
+                    "status": f.status, "walks": [walk_json(w) for w in f.walks]}
+
+        return {"verdict": self.verdict, "cause": self.cause, "causes": self.causes,
+                "ranking": self.ranking, "gain": self.gain, "evidence": self.evidence,
+                "rule": self.rule, "alpha": self.alpha, "seconds": self.seconds,
+                "walks": len(self.base.walks), "base": fit_json(self.base),
+                "extended": {n: fit_json(f) for n, f in self.extended.items()}}
 
 
 WALKS_RULE = ("adequate: no candidate's score test below alpha/K; a cause is named when its "

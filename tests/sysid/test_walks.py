@@ -2,16 +2,19 @@
 a walk counted twice halves the variance, and three walks under known changes tell apart causes
 that one walk leaves tied."""
 
+import json
 import math
 
 import pytest
 from numpy.testing import assert_allclose
-from toywalk.model.parameters import load_params
+from toywalk.model.parameters import load_params, save_params
+from toywalk.model.trajectory import write_trajectory
 from toywalk.sysid.discrepancy import SEPARATION
 from toywalk.sysid.fit import FitError, fit
-from toywalk.sysid.walks import diagnose_walks, fit_walks
+from toywalk.sysid.walks import fit_walks
 
 from ..conftest import DATA
+from .test_cli import run
 from .test_fit import _walk
 
 FREE = ["foot_radius", "com_offset[1]"]
@@ -44,35 +47,55 @@ def test_one_walk_is_the_single_fit_and_a_walk_twice_halves_the_variance(toy):
     assert more.success and more.chi2 <= one.chi2 + 1e-6
 
 
-def test_bad_input_is_refused(toy):
+def test_bad_input_is_refused(toy, tmp_path):
     table, _ = _walk(toy, 4, 0.002, 1)
     with pytest.raises(FitError, match="one parameter set per walk"):
         fit_walks([table, table], [toy], FREE)
     with pytest.raises(FitError, match="one parameter set per walk"):
         fit_walks([], [], FREE)
+    # the command line: three walks with two parameter files, or one walk with two, are refused
+    # with one line before any fit, and no report folder is left
+    write_trajectory(table, tmp_path / "w.csv")
+    save_params(toy, tmp_path / "w.toml")
+    walk, params = tmp_path / "w.csv", tmp_path / "w.toml"
+    for walks, files, message in (([walk] * 3, [params] * 2, "3 walks need one --params each"),
+                                  ([walk], [params] * 2, "one walk takes one --params")):
+        out = run("diagnose", *walks, *[a for f in files for a in ("--params", f)], "--out", tmp_path / "r")
+        assert out.returncode != 0 and message in out.stderr, out.stderr
+        assert len(out.stderr.strip().splitlines()) == 1 and not (tmp_path / "r").exists()
 
 
 @pytest.mark.slow
-def test_three_walks_name_hip_dry_friction(toy):
+def test_three_walks_name_hip_dry_friction(toy, tmp_path):
     """The stable toy with hip dry friction hidden (3 noise SDs beyond the base, as in
     docs/diagnose_effects.csv), walked on its ramp, on one at 0.8 of the slope and with its balance
     masses 1 cm further out (docs/diagnosis.md, "Which second walk breaks the ties"), analysed
-    together with the three friction effects and the slope as candidates: dry friction is named,
-    ahead of the viscous damper by more than the rule's margin (one walk leaves them 1 to 4
-    apart), and its interval holds the truth."""
+    together by the command line with the three friction effects and the slope as candidates: dry
+    friction is named, ahead of the viscous damper by more than the rule's margin (one walk leaves
+    them 1 to 4 apart), and its interval holds the truth."""
     truth = 1.796e-4  # N m
     offset = list(toy.com_offset)
     offset[1] += 0.01
     bases = [toy, toy.replace(slope=0.8 * toy.slope), toy.replace(com_offset=offset)]
-    tables = [_walk(b.replace(**{"effects.hip_coulomb": truth}), 12, 0.002, 500 + k)[0]
-              for k, b in enumerate(bases)]
-    d = diagnose_walks(tables, bases, free=FREE, effects=["hip_damping", "hip_coulomb", "pivot_friction"],
-                       parameters=["slope"])
-    assert d.cause == "effects.hip_coulomb", d.evidence
-    row = {r["effect"]: r for r in d.ranking}
+    args = ["diagnose"]
+    for k, b in enumerate(bases):
+        write_trajectory(_walk(b.replace(**{"effects.hip_coulomb": truth}), 12, 0.002, 500 + k)[0],
+                         tmp_path / f"walk{k}.csv")
+        save_params(b, tmp_path / f"walk{k}.toml")
+        args.append(tmp_path / f"walk{k}.csv")
+    for k in range(3):
+        args += ["--params", tmp_path / f"walk{k}.toml"]
+    r = run(*args, "--free", ",".join(FREE), "--effects", "hip_damping,hip_coulomb,pivot_friction",
+             "--parameters", "slope", "--model", "periodic", "--out", tmp_path / "report")
+    assert r.returncode == 0, r.stderr
+    report = json.loads((tmp_path / "report" / "report.json").read_text())
+    assert report["cause"] == "effects.hip_coulomb", report["evidence"]
+    row = {r["effect"]: r for r in report["ranking"]}
     # first order 149 (docs/tie_design.csv); fitted 173.9 on these seeds, 156.3 on seeds 400-402
     assert row["effects.hip_coulomb"]["lr"] - row["effects.hip_damping"]["lr"] > SEPARATION
     low, high = row["effects.hip_coulomb"]["interval"]["effects.hip_coulomb"]
     assert low < truth < high  # measured 1.770e-4 [1.715e-4, 1.825e-4]
     # every walk weighed by its own samples' scatter (no noise given, no SDs in the files)
-    assert {w.noise_source for w in d.base.walks} == {"scatter within steps"}
+    assert {w["noise_source"] for w in report["base"]["walks"]} == {"scatter within steps"}
+    assert (tmp_path / "report" / "candidates.png").stat().st_size > 0
+    assert "3 walks together" in (tmp_path / "report" / "report.md").read_text()
