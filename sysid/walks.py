@@ -156,9 +156,20 @@ def fit_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], free,
         raise FitError(f"warm must be a joint fit of the same {len(tables)} walks, got {len(warm.walks)}")
     problems, starts, sigmas, sources = [], [], [], []
     for k, (table, walker) in enumerate(zip(tables, params, strict=True)):
-        problem, w0 = _setup(table, walker, free, model=model, offsets=offsets, n_intervals=None,
-                             degree=None, z_guess=None, max_iter=max_iter, check_jacobian=False,
-                             priors={}, strikes=strikes)
+        setup = {"model": model, "offsets": offsets, "n_intervals": None, "degree": None,
+                 "max_iter": max_iter, "check_jacobian": False, "priors": {}, "strikes": strikes}
+        try:
+            problem, w0 = _setup(table, walker, free, z_guess=None, **setup)
+        except FitError:
+            # The walker's gait under this walk's condition, from the last walk's: its own search
+            # from the planar reduction can stall where Newton from a nearby condition's gait
+            # converges.
+            if not problems:
+                raise
+            last = problems[-1]
+            z_last = last.walker.to_public(np.r_[starts[-1][1:1 + last.prob.n_dyn],
+                                                 np.zeros(last.walker.lay.nx - last.prob.n_dyn)])
+            problem, w0 = _setup(table, walker, free, z_guess=z_last, **setup)
         obs = problem.obs
         if noise_sd is not None:
             sigma, source = _sigma_from(noise_sd, obs), "given"

@@ -7,6 +7,7 @@ import math
 
 import pytest
 from numpy.testing import assert_allclose
+from toywalk.model.gait import GaitNotFound
 from toywalk.model.parameters import load_params, save_params
 from toywalk.model.trajectory import write_trajectory
 from toywalk.sysid.discrepancy import SEPARATION
@@ -45,6 +46,31 @@ def test_one_walk_is_the_single_fit_and_a_walk_twice_halves_the_variance(toy):
     # the warm start: freeing one more parameter from a joint fit of the same walks
     more = fit_walks([table], [toy], FREE + ["effects.hip_damping"], noise_sd=NOISE, warm=one)
     assert more.success and more.chi2 <= one.chi2 + 1e-6
+
+
+def test_a_walk_whose_gait_search_fails_starts_from_the_last_walks_gait(toy, monkeypatch):
+    """When the gait search from scratch fails for a later walk's condition, its gait is solved
+    from the last walk's: the joint fit is the one made without the failure."""
+    import toywalk.sysid.fit as fit_module
+
+    flatter = toy.replace(slope=0.95 * toy.slope)
+    tables = [_walk(p, 6, 0.002, 11 + k)[0] for k, p in enumerate((toy, flatter))]
+    plain = fit_walks(tables, [toy, flatter], FREE, noise_sd=NOISE)
+    search = fit_module.find_gait
+
+    def failing(params, *args, **kwargs):
+        if params.slope != toy.slope:
+            raise GaitNotFound("continuation stalled (a test's failure)")
+        return search(params, *args, **kwargs)
+
+    monkeypatch.setattr(fit_module, "find_gait", failing)
+    with pytest.raises(FitError, match="no gait"):
+        fit(tables[1], flatter, FREE, noise_sd=NOISE)  # the failure is real for a single fit
+    fallback = fit_walks(tables, [toy, flatter], FREE, noise_sd=NOISE)
+    assert plain.success and fallback.success
+    # the same optimum (IPOPT's tolerance 1e-10 on the same problem, from another start)
+    assert_allclose([fallback.estimates[n] for n in FREE], [plain.estimates[n] for n in FREE], rtol=1e-6)
+    assert fallback.chi2 == pytest.approx(plain.chi2, rel=1e-8)
 
 
 def test_bad_input_is_refused(toy, tmp_path):
