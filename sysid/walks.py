@@ -48,6 +48,7 @@ from .discrepancy import (
     lr_p_value,
 )
 from .fit import (
+    CONTACT_KEYS,
     FitError,
     FitResult,
     _contact_sigma,
@@ -59,7 +60,8 @@ from .fit import (
 )
 from .residuals import scatter_noise
 
-__all__ = ["WALKS_RULE", "WalksDiagnosis", "WalksFit", "diagnose_walks", "fit_walks", "stacked"]
+__all__ = ["WALKS_RULE", "WalksDiagnosis", "WalksFit", "diagnose_walks", "fit_walks", "stacked",
+           "without_unweighed_contacts"]
 
 
 @dataclasses.dataclass
@@ -116,6 +118,22 @@ def stacked(shared: Sequence[np.ndarray], nuisance: Sequence[np.ndarray]) -> tup
     return np.vstack(shared), block
 
 
+def without_unweighed_contacts(table: TrajectoryTable, noise_sd: dict | None = None) -> TrajectoryTable:
+    """``table`` without its heel strikes' contact positions when they have no SDs (the events
+    file's ``x_sd, y_sd``) and ``noise_sd`` gives none (:data:`toywalk.sysid.fit.CONTACT_KEYS`):
+    their noise would have to come from the residuals, which a base model's misfit inflates
+    (a simulation's contacts are exact). Otherwise ``table`` itself."""
+    located = [e for e in table.events
+               if all(isinstance(e.get(c), (int, float)) and math.isfinite(e[c]) for c in ("x", "y"))]
+    known = all(all(isinstance(e.get(c), (int, float)) and math.isfinite(e[c]) for c in ("x_sd", "y_sd"))
+                for e in located)
+    given = noise_sd is not None and all(k in noise_sd for k in CONTACT_KEYS)
+    if not located or known or given:
+        return table
+    events = [{k: v for k, v in e.items() if k not in ("x", "y", "x_sd", "y_sd")} for e in table.events]
+    return TrajectoryTable(table.time, table.signals, table.stance, events, table.metadata)
+
+
 def fit_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], free, *,
               noise_sd: dict | None = None, warm: WalksFit | None = None, max_iter: int = 500,
               model: str = "periodic", offsets: bool = True, strikes: str = "model") -> WalksFit:
@@ -155,6 +173,7 @@ def fit_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], free,
     if warm is not None and len(warm.walks) != len(tables):
         raise FitError(f"warm must be a joint fit of the same {len(tables)} walks, got {len(warm.walks)}")
     problems, starts, sigmas, sources = [], [], [], []
+    tables = [without_unweighed_contacts(t, noise_sd) for t in tables]
     for k, (table, walker) in enumerate(zip(tables, params, strict=True)):
         setup = {"model": model, "offsets": offsets, "n_intervals": None, "degree": None,
                  "max_iter": max_iter, "check_jacobian": False, "priors": {}, "strikes": strikes}
@@ -182,9 +201,6 @@ def fit_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], free,
                                "give noise_sd")
             sigma, source = _sigma_from(scatter, obs), "scatter within steps"
         sigma_c, source_c = _contact_sigma(problem.path, noise_sd)
-        if source_c == "estimated from residuals":
-            raise FitError(f"walk {k + 1} has contact positions without SDs: give noise_sd with "
-                           "their SDs or drop them")
         x = problem.start(w0)
         if warm is not None:
             done = warm.walks[k]
@@ -336,6 +352,11 @@ def diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], 
     free = list(free)
     cands = candidates(params[0], free, effects, parameters)
     k = len(cands)
+    stripped = [without_unweighed_contacts(t, noise_sd) for t in tables]
+    dropped = [i + 1 for i, (a, b) in enumerate(zip(tables, stripped, strict=True)) if a is not b]
+    tables = stripped
+    if dropped:
+        say(f"walks {dropped}: contact positions without SDs, not used")
     say(f"base fit of {len(tables)} walks ({', '.join(free) or 'no free parameters'})")
     base = fit_walks(tables, params, free, noise_sd=noise_sd, **fit_options)
     scores: dict = {}
@@ -412,6 +433,8 @@ def diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], 
             verdict, cause = "discrepancy", "unexplained"
             evidence = (f"{lead['effect']} and {significant[1]['effect']} explain the walks within "
                         f"{gap:.1f} in chi-square (the rule asks {SEPARATION:.1f})")
+    if dropped:
+        evidence += f"; the contact positions of walk(s) {dropped} were not used: they have no SDs"
     named = extended.get(cause) if cause not in (None, "unexplained") else None
     gain = {"metric": "chi-square, all walks", "base": base_chi2,
             "extended": named.chi2 if named is not None else None}

@@ -5,14 +5,15 @@ that one walk leaves tied."""
 import json
 import math
 
+import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 from toywalk.model.gait import GaitNotFound
 from toywalk.model.parameters import load_params, save_params
-from toywalk.model.trajectory import write_trajectory
+from toywalk.model.trajectory import TrajectoryTable, write_trajectory
 from toywalk.sysid.discrepancy import SEPARATION
 from toywalk.sysid.fit import FitError, fit
-from toywalk.sysid.walks import fit_walks
+from toywalk.sysid.walks import fit_walks, without_unweighed_contacts
 
 from ..conftest import DATA
 from .test_cli import run
@@ -71,6 +72,21 @@ def test_a_walk_whose_gait_search_fails_starts_from_the_last_walks_gait(toy, mon
     # the same optimum (IPOPT's tolerance 1e-10 on the same problem, from another start)
     assert_allclose([fallback.estimates[n] for n in FREE], [plain.estimates[n] for n in FREE], rtol=1e-6)
     assert fallback.chi2 == pytest.approx(plain.chi2, rel=1e-8)
+
+
+def test_contact_positions_without_sds_are_left_out():
+    """A simulation's contact positions come without SDs: the joint analysis leaves them out
+    (their noise would come from a misfit-inflated residual), unless the file or noise_sd gives
+    their SDs."""
+    events = [{"time": 0.0, "foot": "L", "x": 0.0, "y": 0.0},
+              {"time": 0.1, "foot": "R", "x": 0.04, "y": -0.1}]
+    table = TrajectoryTable(np.arange(3.0) * 0.05, {"lean": np.zeros(3)}, ["L", "L", "R"], events, {})
+    bare = without_unweighed_contacts(table)
+    assert [sorted(e) for e in bare.events] == [["foot", "time"]] * 2
+    assert without_unweighed_contacts(table, {"contact_x": 1e-3, "contact_y": 1e-3}) is table
+    with_sd = TrajectoryTable(table.time, table.signals, table.stance,
+                              [{**e, "x_sd": 1e-3, "y_sd": 1e-3} for e in events], {})
+    assert without_unweighed_contacts(with_sd) is with_sd
 
 
 def test_bad_input_is_refused(toy, tmp_path):
