@@ -2,6 +2,7 @@
 
     python docs/make_tie_design.py            -> docs/tie_design.csv (about 1 min)
     python docs/make_tie_design.py joint      -> docs/tie_joint.csv (about 8 min)
+    python docs/make_tie_design.py null FIRST LAST -> docs/tie_null.csv (about 3 min a seed)
 
 On a walk of the stable toy on its cycle the hip's viscous and dry friction and the stance foot's
 pivot friction explain one another's walks (docs/diagnosis.md, "Each effect of the library hidden
@@ -29,6 +30,10 @@ changes as two more walks.
 (toy's slope, 0.8 of it, balance masses 1 cm out; 12 steps each, 0.002 rad of white noise, seeds
 600 + 10 i + walk), the base freeing the foot radius and lateral offset, the three effects and the
 slope the candidates; each walk weighed by its samples' scatter.
+
+``null`` measures the joint analysis's false alarms: the three walks of the toy itself (no effect
+hidden; seeds 10 s + walk for s in FIRST..LAST-1), the whole library as candidates. Rows are
+appended as measured, so a killed run keeps them.
 """
 
 from __future__ import annotations
@@ -139,9 +144,29 @@ def joint() -> None:
     tmp.replace(out)
 
 
+def null(first: int, last: int) -> None:
+    out = HERE / "tie_null.csv"
+    bases = [TOY, *(changed(c) for c in DESIGNS["two more walks: slope x0.8, balance masses 1 cm out"])]
+    for seed in range(first, last):
+        d = diagnose_walks([walk(b, 10 * seed + k) for k, b in enumerate(bases)], bases, free=FREE)
+        best = max(d.ranking, key=lambda r: abs(r.get("score_z", 0.0)))
+        row = {"seed": seed, "verdict": d.verdict, "cause": d.cause or "", "largest_score": best["effect"],
+               "z": f"{best.get('score_z', float('nan')):.2f}", "base_status": d.base.status,
+               "seconds": f"{d.seconds:.0f}"}
+        new = not out.exists()
+        with open(out, "a", newline="") as fh:
+            writer = csv.DictWriter(fh, fieldnames=list(row))
+            if new:
+                writer.writeheader()
+            writer.writerow(row)
+        print(row, flush=True)
+
+
 if __name__ == "__main__":
     if sys.argv[1:2] == ["joint"]:
         joint()
+    elif sys.argv[1:2] == ["null"] and len(sys.argv) == 4:
+        null(int(sys.argv[2]), int(sys.argv[3]))
     elif sys.argv[1:]:
         sys.exit(__doc__)
     else:
