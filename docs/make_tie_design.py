@@ -43,7 +43,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).parent))
-from make_diagnose_validation import FREE, NOISE, TOY, walk  # noqa: E402
+from make_diagnose_validation import FREE, NOISE, TOY, _append, walk  # noqa: E402
 from toywalk.sysid.design import separation, walk_columns  # noqa: E402
 from toywalk.sysid.discrepancy import candidates  # noqa: E402
 from toywalk.sysid.walks import diagnose_walks  # noqa: E402
@@ -153,12 +153,7 @@ def null(first: int, last: int) -> None:
         row = {"seed": seed, "verdict": d.verdict, "cause": d.cause or "", "largest_score": best["effect"],
                "z": f"{best.get('score_z', float('nan')):.2f}", "base_status": d.base.status,
                "seconds": f"{d.seconds:.0f}"}
-        new = not out.exists()
-        with open(out, "a", newline="") as fh:
-            writer = csv.DictWriter(fh, fieldnames=list(row))
-            if new:
-                writer.writeheader()
-            writer.writerow(row)
+        _append(out, row)
         print(row, flush=True)
 
 
