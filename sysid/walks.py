@@ -242,8 +242,9 @@ def fit_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], free,
     # fit reads the walk between the model's strikes, on those from there; from a warm start the
     # second stage only.
     x_all = np.concatenate(starts)
-    stages = [1.0] if warm is not None and strikes == "model" else \
-        sorted({0.0, 1.0 if strikes == "model" else 0.0})
+    stages = [0.0, 1.0] if strikes == "model" else [0.0]
+    if warm is not None and strikes == "model":
+        stages = [1.0]
     for stage in stages:
         p_value = np.concatenate([np.r_[1.0 / sg, stage] for sg in sigmas])
         lo, hi = lbx.copy(), ubx.copy()
@@ -360,7 +361,7 @@ def diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], 
     say(f"base fit of {len(tables)} walks ({', '.join(free) or 'no free parameters'})")
     base = fit_walks(tables, params, free, noise_sd=noise_sd, **fit_options)
     scores: dict = {}
-    if base.success and free:
+    if base.success:
         say(f"screening {k} candidates by score tests")
         shared, nuisance, residuals = [], [], []
         for table, walk in zip(tables, base.walks, strict=True):
