@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 from pathlib import Path
 
@@ -379,6 +380,12 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print(f"toywalk {args.command}: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # the reader of stdout went away (`toywalk gait --json | head`): stop quietly, as Unix
+        # tools do; point stdout at /dev/null so that Python's own flush at exit cannot raise
+        # (https://docs.python.org/3/library/signal.html#note-on-sigpipe)
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
 
 
 if __name__ == "__main__":

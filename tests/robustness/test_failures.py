@@ -73,3 +73,18 @@ def test_track_warns_when_the_walk_cannot_be_fitted(video, tmp_path, capfd):
     lines = outcome.err_lines
     assert len(lines) == 1 and lines[0].startswith("toywalk track: warning: "), outcome.err
     assert f"{len(table.events)} heel strikes were found (fit needs 3)" in lines[0]
+
+
+def test_a_reader_that_stops_early_gets_no_traceback():
+    """`toywalk effects --json | head -c 50`: the reader closes the pipe before the command writes.
+    The command stops quietly with status 141 (128 + SIGPIPE, as a shell reports a Unix tool
+    stopped by a closed pipe), not with Python's BrokenPipeError traceback."""
+    import subprocess
+    import sys
+
+    with subprocess.Popen([sys.executable, "-m", "toywalk.sysid.cli", "effects", "--json"],
+                          stdout=subprocess.PIPE, stderr=subprocess.PIPE) as proc:
+        proc.stdout.close()  # before the command has imported its modules, so before it writes
+        err = proc.stderr.read().decode()
+        assert proc.wait(timeout=120) == 141, err
+    assert err == ""
