@@ -98,6 +98,16 @@ _PHASE_BINS = 10
 #: Identifiability: a direction of the free parameters (scaled to unit column norms) whose
 #: singular value is below this fraction of the largest is reported as not determined.
 _NEAR_SINGULAR = 1e-6
+
+
+def _ipopt_options(max_iter: int) -> dict:
+    """IPOPT's options for a fit's NLP, one walk's or several walks' joined
+    (:func:`toywalk.sysid.walks.fit_walks`): silent, converged to 1e-10 (the fit's Jacobian and
+    covariance are read at the optimum), at most ``max_iter`` iterations."""
+    return {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes", "ipopt.tol": 1e-10,
+            "ipopt.max_iter": max_iter}
+
+
 # Parameters that must stay inside (low, high); lengths and masses are >= 0.
 _BASE_BOUNDS = {
     "leg_length": (0.0, math.inf), "foot_radius": (0.0, math.inf),
@@ -670,10 +680,7 @@ class _Problem:
         self.residuals_jac = ca.Function("residuals_jac", [x, inv_sd_all, stage],
                                          [ca.jacobian(residuals, x)])
         self.solver = ca.nlpsol("fit", "ipopt", {"x": x, "p": ca.vertcat(inv_sd_all, stage), "f": f,
-                                                 "g": g}, {
-            "ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
-            "ipopt.tol": 1e-10, "ipopt.max_iter": max_iter,
-        })
+                                                 "g": g}, _ipopt_options(max_iter))
         low, high = np.full(len(x.nz), -np.inf), np.full(len(x.nz), np.inf)
         for j, name in enumerate(free):
             lo, hi = fit_bounds(params, free, name)

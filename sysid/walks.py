@@ -53,6 +53,7 @@ from .fit import (
     FitResult,
     _contact_sigma,
     _continued,
+    _ipopt_options,
     _setup,
     _sigma_from,
     held_jacobian,
@@ -233,9 +234,8 @@ def fit_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], free,
             gs.append(pr.scale[j] * xs[int(at[k]) + pr.n_w + j] - first.scale[j] * xs[first.n_w + j])
             lbg.append([0.0])
             ubg.append([0.0])
-    solver = ca.nlpsol("walks", "ipopt", {"x": xs, "p": ps, "f": f, "g": ca.vertcat(*gs)}, {
-        "ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
-        "ipopt.tol": 1e-10, "ipopt.max_iter": max_iter})
+    solver = ca.nlpsol("walks", "ipopt", {"x": xs, "p": ps, "f": f, "g": ca.vertcat(*gs)},
+                       _ipopt_options(max_iter))
     lbx, ubx = np.concatenate([pr.lbx for pr in problems]), np.concatenate([pr.ubx for pr in problems])
     lbg, ubg = np.concatenate(lbg), np.concatenate(ubg)
     # As each walk's fit: first aligned on the measured strikes (clocks held), then, where the
@@ -339,7 +339,8 @@ def diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], 
        fit, stacked as in :func:`stacked`) when the base converged; every candidate is fitted
        when it did not.
     3. The best :data:`toywalk.sysid.discrepancy.MAX_EXTENDED` fitted (all walks together), each
-       scored by its likelihood ratio against the base.
+       scored by its likelihood ratio against the base; none when the screening finds no
+       candidate significant (the base is then adequate, as in the single walk's analysis).
     4. The rule (:data:`WALKS_RULE`): the single walk's, less its held-out check (folds of
        strides within each walk are not built for several walks) and its residual pattern.
 
@@ -380,8 +381,12 @@ def diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], 
         one_sided = c.side != 0
         return -(z * c.side if one_sided else abs(z))  # the larger the evidence, the earlier
 
+    # a one-sided candidate's score counts only in the direction it can move
+    any_score = any(lr_p_value(v["z"] ** 2 if c.side * v["z"] >= 0 else 0.0, c.side != 0) < alpha / k
+                    for c in cands for v in [scores.get(c.name)] if v is not None)
     order = sorted(cands, key=screened) if scores else cands
-    chosen = order[:MAX_EXTENDED] if scores else order
+    # as the single walk's analysis: no candidate fitted when the screening finds none significant
+    chosen = [] if scores and not any_score else order[:MAX_EXTENDED] if scores else order
     extended: dict = {}
     for c in chosen:
         say(f"fitting {c.name} on all walks")
@@ -415,9 +420,6 @@ def diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], 
         ranking.append(row)
     ranking.sort(key=lambda r: -r.get("lr", -math.inf))
     significant = [r for r in ranking if "lr" in r and r["lr_p"] < alpha / k]
-    # a one-sided candidate's score counts only in the direction it can move
-    any_score = any(lr_p_value(v["z"] ** 2 if c.side * v["z"] >= 0 else 0.0, c.side != 0) < alpha / k
-                    for c in cands for v in [scores.get(c.name)] if v is not None)
     if not significant and (scores and not any_score):
         verdict, cause, evidence = "adequate", None, "no candidate's score test is significant"
     elif not significant:

@@ -13,13 +13,13 @@ from .test_fit import _walk
 FREE = ["foot_radius", "com_offset[1]"]
 
 
-def _is_named(effect: str, truth: float, seed: int) -> None:
+def _is_named(effect: str, truth: float, seed: int, **options) -> None:
     """A 12-step walk of the stable toy with ``effect`` at ``truth``, 0.002 rad of noise, analysed
-    with the base model: the effect named, its 95 % interval holding the truth, held-out strides
-    predicted better."""
+    with the base model (``options`` to :func:`diagnose`): the effect named, its 95 % interval
+    holding the truth, held-out strides predicted better."""
     toy = load_params(DATA / "params" / "stable-toy.toml")
     table, _ = _walk(toy.replace(**{effect: truth}), 12, 0.002, seed)
-    d = diagnose(table, toy, free=FREE, model="periodic")
+    d = diagnose(table, toy, free=FREE, model="periodic", **options)
     assert d.verdict == "discrepancy" and d.cause == effect, d.evidence
     row = next(r for r in d.ranking if r["effect"] == d.cause)
     low, high = row["interval"][d.cause]

@@ -13,7 +13,7 @@ from toywalk.model.parameters import load_params, save_params
 from toywalk.model.trajectory import TrajectoryTable, write_trajectory
 from toywalk.sysid.discrepancy import SEPARATION
 from toywalk.sysid.fit import FitError, fit
-from toywalk.sysid.walks import fit_walks, without_unweighed_contacts
+from toywalk.sysid.walks import diagnose_walks, fit_walks, without_unweighed_contacts
 
 from ..conftest import DATA
 from .test_cli import run
@@ -72,6 +72,21 @@ def test_a_walk_whose_gait_search_fails_starts_from_the_last_walks_gait(toy, mon
     # the same optimum (IPOPT's tolerance 1e-10 on the same problem, from another start)
     assert_allclose([fallback.estimates[n] for n in FREE], [plain.estimates[n] for n in FREE], rtol=1e-6)
     assert fallback.chi2 == pytest.approx(plain.chi2, rel=1e-8)
+
+
+def test_walks_of_the_base_model_are_adequate_and_nothing_is_fitted(toy):
+    """Two walks of the stable toy with nothing hidden, no free parameter (the command's default):
+    the score tests stacked over the walks find no candidate significant, so the base is adequate
+    and no candidate is fitted, as in the single walk's analysis (docs/tie_null.csv: 10 of 10
+    adequate with three walks and two free parameters)."""
+    flatter = toy.replace(slope=0.9 * toy.slope)
+    tables = [_walk(p, 8, 0.002, 900 + k)[0] for k, p in enumerate((toy, flatter))]
+    d = diagnose_walks(tables, [toy, flatter], noise_sd=NOISE)
+    assert d.verdict == "adequate" and d.cause is None, d.evidence
+    assert d.extended == {} and all("lr" not in r for r in d.ranking)
+    # every candidate screened (measured largest |z| 0.84; Bonferroni's level over the library's
+    # candidates is about |z| 3)
+    assert len(d.ranking) > 8 and all(abs(r["score_z"]) < 3.0 for r in d.ranking)
 
 
 def test_contact_positions_without_sds_are_left_out():
