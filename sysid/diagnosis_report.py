@@ -51,29 +51,36 @@ def _finish(fig, path: Path) -> Path:
     return path
 
 
+def _phase_panel(ax, name: str, reports) -> None:
+    """One signal's mean residual in each phase bin with 2 SE bars, for each ``(label, report,
+    colour)`` of ``reports``."""
+    bins = reports[0][1].bins
+    centre = (np.arange(bins) + 0.5) / bins
+    for label, rep, colour in reports:
+        mean = np.degrees(rep.phase_mean[name])
+        se = np.degrees(rep.phase_se[name])
+        ax.errorbar(centre, mean, yerr=2 * se, color=colour, marker="o", ms=3, lw=1, capsize=2,
+                    label=f"{label} (p = {rep.tests[name]['pattern_p']:.2g})")
+    ax.axhline(0.0, color="k", lw=0.6)
+    ax.legend(fontsize=7, loc="upper right")
+
+
+_PHASE_XLABEL = "phase of the step (bars: 2 SE over the steps; p: pattern repeated every step)"
+
+
 def _phase_figure(d: Diagnosis, folder: Path) -> Path:
     from matplotlib.figure import Figure
 
     names = list(d.residuals.phase_mean)
     fig = Figure(figsize=(8, 1.9 * len(names) + 0.6))
     axes = fig.subplots(len(names), 1, sharex=True, squeeze=False)
-    bins = d.residuals.bins
-    centre = (np.arange(bins) + 0.5) / bins
     for i, name in enumerate(names):
-        ax = axes[i, 0]
         reports = [("base", d.residuals, "C0")]
         if d.residuals_extended is not None:
             reports.append((" + ".join(d.causes) or "extended", d.residuals_extended, "C3"))
-        for label, rep, colour in reports:
-            mean = np.degrees(rep.phase_mean[name])
-            se = np.degrees(rep.phase_se[name])
-            ax.errorbar(centre, mean, yerr=2 * se, color=colour, marker="o", ms=3, lw=1, capsize=2,
-                        label=f"{label} (p = {rep.tests[name]['pattern_p']:.2g})")
-        ax.axhline(0.0, color="k", lw=0.6)
-        ax.set_ylabel(f"{name}\n(deg)", fontsize=8)
-        ax.legend(fontsize=7, loc="upper right")
-    axes[-1, 0].set_xlabel("phase of the step (bars: 2 SE over the steps; p: pattern repeated "
-                           "every step)")
+        _phase_panel(axes[i, 0], name, reports)
+        axes[i, 0].set_ylabel(f"{name}\n(deg)", fontsize=8)
+    axes[-1, 0].set_xlabel(_PHASE_XLABEL)
     return _finish(fig, folder / "residuals_by_phase.png")
 
 
@@ -275,10 +282,32 @@ def _summary_markdown(d) -> str:
 
 def write_walks_diagnosis(diagnosis, folder: Path, inputs: dict | None = None) -> list[Path]:
     """The report of :func:`toywalk.sysid.walks.diagnose_walks` (several walks analysed together):
-    report.json, report.md and ``candidates.png`` (each candidate's score statistic and
-    likelihood ratio, all walks together)."""
+    report.json, report.md, ``candidates.png`` (each candidate's score statistic and likelihood
+    ratio, all walks together) and ``residuals_by_phase.png`` (each walk's residuals by phase of
+    the step, base and named cause)."""
     return _write_report(Path(folder), diagnosis, inputs, _walks_markdown(diagnosis),
-                         lambda f: [_walks_candidate_figure(diagnosis, f)])
+                         lambda f: [_walks_candidate_figure(diagnosis, f)]
+                         + ([_walks_phase_figure(diagnosis, f)] if diagnosis.residuals else []))
+
+
+def _walks_phase_figure(d, folder: Path) -> Path:
+    from matplotlib.figure import Figure
+
+    names = list(d.residuals[0].phase_mean)
+    n = len(d.residuals)
+    fig = Figure(figsize=(3.2 * n + 1, 1.9 * len(names) + 0.8))
+    axes = fig.subplots(len(names), n, sharex=True, squeeze=False)
+    for j, base in enumerate(d.residuals):
+        reports = [("base", base, "C0")]
+        if d.residuals_extended is not None:
+            reports.append((d.cause, d.residuals_extended[j], "C3"))
+        for i, name in enumerate(names):
+            _phase_panel(axes[i, j], name, reports)
+        axes[0, j].set_title(f"walk {j + 1}", fontsize=9)
+    for i, name in enumerate(names):
+        axes[i, 0].set_ylabel(f"{name}\n(deg)", fontsize=8)
+    fig.supxlabel(_PHASE_XLABEL, fontsize=8)
+    return _finish(fig, folder / "residuals_by_phase.png")
 
 
 def _walks_candidate_figure(d, folder: Path) -> Path:
@@ -307,16 +336,19 @@ def _walks_markdown(d) -> str:
              f"Evidence: {d.evidence}.", "",
              f"Rule: {d.rule} (alpha = {d.alpha:g}, K = {len(d.ranking)} candidates).", "",
              "## The walks (base fit)", "",
-             "| walk | chi-square | residuals | noise (rad) | noise from | max abs eigenvalue |",
-             "| --- | --- | --- | --- | --- | --- |"]
+             "| walk | chi-square | residuals | noise (rad) | noise from | max abs eigenvalue | "
+             "pattern repeated every step |",
+             "| --- | --- | --- | --- | --- | --- | --- |"]
     for k, w in enumerate(d.base.walks, start=1):
         noise = ", ".join(f"{n} {v:.3g}" for n, v in w.noise_sd.items())
+        pattern = ", ".join(d.residuals[k - 1].systematic) or "none" if d.residuals else "-"
         lines.append(f"| {k} | {w.chi2:.1f} | {w.n_residuals} | {noise} | {w.noise_source} | "
-                     f"{_num(w.gait.get('max_abs_eigenvalue'), '.4g')} |")
+                     f"{_num(w.gait.get('max_abs_eigenvalue'), '.4g')} | {pattern} |")
     lines += ["", f"Base: chi-square {d.base.chi2:.1f} on {d.base.n_residuals} residuals "
               f"({d.base.status}); shared changes: "
               + (", ".join(f"{n} {d.base.change[n]:+.4g} +- {d.base.std[n]:.2g}" for n in d.base.free)
                  or "none") + ".", "",
+              "![residuals by phase](residuals_by_phase.png)", "",
               "## Candidates", "", "![candidates](candidates.png)", "",
               "| candidate | score z | likelihood ratio | p | estimate | 95 % interval |",
               "| --- | --- | --- | --- | --- | --- |"]

@@ -59,7 +59,8 @@ from .fit import (
     held_jacobian,
     score_statistics,
 )
-from .residuals import scatter_noise
+from .measurement import observations
+from .residuals import ResidualReport, residual_report, scatter_noise
 
 __all__ = ["WALKS_RULE", "WalksDiagnosis", "WalksFit", "diagnose_walks", "fit_walks", "stacked",
            "without_unweighed_contacts"]
@@ -291,6 +292,11 @@ class WalksDiagnosis(Verdict):
     rule : str
     alpha : float
     seconds : float
+    residuals : list of ResidualReport
+        Each walk's base residuals tested for a pattern repeated every step
+        (:func:`toywalk.sysid.residuals.residual_report`, at alpha over the walks).
+    residuals_extended : list of ResidualReport or None
+        The same for the named cause's fit (None when nothing is named).
     """
 
     base: WalksFit
@@ -298,6 +304,8 @@ class WalksDiagnosis(Verdict):
     rule: str
     alpha: float
     seconds: float = 0.0
+    residuals: list = dataclasses.field(default_factory=list)
+    residuals_extended: list | None = None
 
     def to_json(self) -> dict:
         """``report.json`` (pipeline.md's fields, and each walk's base fit)."""
@@ -315,14 +323,32 @@ class WalksDiagnosis(Verdict):
                 "ranking": self.ranking, "gain": self.gain, "evidence": self.evidence,
                 "rule": self.rule, "alpha": self.alpha, "seconds": self.seconds,
                 "walks": len(self.base.walks), "base": fit_json(self.base),
-                "extended": {n: fit_json(f) for n, f in self.extended.items()}}
+                "extended": {n: fit_json(f) for n, f in self.extended.items()},
+                "residuals": [r.to_json() for r in self.residuals],
+                "residuals_extended": None if self.residuals_extended is None else
+                [r.to_json() for r in self.residuals_extended]}
 
 
-WALKS_RULE = ("adequate: no candidate's score test below alpha/K; a cause is named when its "
+WALKS_RULE = ("adequate: no candidate's score test below alpha/K and no walk with a pattern repeated "
+              "every step (alpha over the walks and their signals); a cause is named when its "
               "likelihood ratio (all walks together) is below alpha/K and it beats every other "
-              f"significant candidate by {SEPARATION:.1f} in chi-square; unexplained otherwise. "
-              "Neither the held-out check nor the residual pattern of the single-walk analysis "
-              "is made")
+              f"significant candidate by {SEPARATION:.1f} in chi-square; unexplained otherwise, or "
+              "when the extended model still leaves a repeated pattern in a walk. The single-walk "
+              "analysis's held-out check is not made")
+
+
+def _patterns(tables, fit: WalksFit, alpha: float) -> list[ResidualReport]:
+    """Each walk's residuals at the joint fit tested for a pattern repeated every step, at
+    ``alpha`` over the walks (Bonferroni; each report splits its share over the signals)."""
+    return [residual_report(observations(t), w.residuals, alpha=alpha / len(tables))
+            for t, w in zip(tables, fit.walks, strict=True)]
+
+
+def _pattern_note(reports: list[ResidualReport]) -> str:
+    """The walks whose residuals repeat a pattern every step, and in which signals
+    (``walk 2: steer, pitch_st``); empty when none does."""
+    return "; ".join(f"walk {i + 1}: {', '.join(r.systematic)}"
+                     for i, r in enumerate(reports) if r.systematic)
 
 
 def diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], *, free=(),
@@ -361,6 +387,7 @@ def diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], 
         say(f"walks {dropped}: contact positions without SDs, not used")
     say(f"base fit of {len(tables)} walks ({', '.join(free) or 'no free parameters'})")
     base = fit_walks(tables, params, free, noise_sd=noise_sd, **fit_options)
+    patterns = _patterns(tables, base, alpha) if base.success else []
     scores: dict = {}
     if base.success:
         say(f"screening {k} candidates by score tests")
@@ -385,8 +412,9 @@ def diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], 
     any_score = any(lr_p_value(v["z"] ** 2 if c.side * v["z"] >= 0 else 0.0, c.side != 0) < alpha / k
                     for c in cands for v in [scores.get(c.name)] if v is not None)
     order = sorted(cands, key=screened) if scores else cands
-    # as the single walk's analysis: no candidate fitted when the screening finds none significant
-    chosen = [] if scores and not any_score else order[:MAX_EXTENDED] if scores else order
+    # as the single walk's analysis: no candidate fitted when the screening finds nothing
+    quiet = bool(scores) and not any_score and not any(r.systematic for r in patterns)
+    chosen = [] if quiet else order[:MAX_EXTENDED] if scores else order
     extended: dict = {}
     for c in chosen:
         say(f"fitting {c.name} on all walks")
@@ -402,6 +430,7 @@ def diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], 
         again = fit_walks(tables, params, free, noise_sd=noise_sd, warm=fitted[best_name], **fit_options)
         if again.success and again.chi2 < base_chi2:
             base, base_chi2 = again, again.chi2
+            patterns = _patterns(tables, base, alpha)
     if not math.isfinite(base_chi2):
         raise DiagnoseError(f"the base model could not be fitted to the {len(tables)} walks: {base.status}")
     ranking = []
@@ -420,8 +449,9 @@ def diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], 
         ranking.append(row)
     ranking.sort(key=lambda r: -r.get("lr", -math.inf))
     significant = [r for r in ranking if "lr" in r and r["lr_p"] < alpha / k]
-    if not significant and (scores and not any_score):
-        verdict, cause, evidence = "adequate", None, "no candidate's score test is significant"
+    if not significant and quiet:
+        verdict, cause, evidence = "adequate", None, ("no candidate's score test is significant and no "
+                                                      "walk's residuals repeat a pattern every step")
     elif not significant:
         verdict, cause, evidence = "discrepancy", "unexplained", "no fitted candidate is significant"
     else:
@@ -436,11 +466,21 @@ def diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], 
             verdict, cause = "discrepancy", "unexplained"
             evidence = (f"{lead['effect']} and {significant[1]['effect']} explain the walks within "
                         f"{gap:.1f} in chi-square (the rule asks {SEPARATION:.1f})")
+    if _pattern_note(patterns):
+        evidence += f"; the base model leaves a pattern repeated every step ({_pattern_note(patterns)})"
+    named = extended.get(cause) if cause not in (None, "unexplained") else None
+    patterns_named = None
+    if named is not None:
+        patterns_named = _patterns(tables, named, alpha)
+        if _pattern_note(patterns_named):
+            evidence += (f"; {cause} improves the fit but leaves a pattern repeated every step "
+                         f"({_pattern_note(patterns_named)}): physics outside it remains")
+            cause, named = "unexplained", None
     if dropped:
         evidence += f"; the contact positions of walk(s) {dropped} were not used: they have no SDs"
-    named = extended.get(cause) if cause not in (None, "unexplained") else None
     gain = {"metric": "chi-square, all walks", "base": base_chi2,
             "extended": named.chi2 if named is not None else None}
     return WalksDiagnosis(verdict=verdict, cause=cause, causes=[cause] if named is not None else [],
                           ranking=ranking, gain=gain, evidence=evidence, base=base, extended=extended,
-                          rule=WALKS_RULE, alpha=alpha, seconds=time.perf_counter() - clock)
+                          rule=WALKS_RULE, alpha=alpha, seconds=time.perf_counter() - clock,
+                          residuals=patterns, residuals_extended=patterns_named)

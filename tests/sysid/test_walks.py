@@ -84,6 +84,8 @@ def test_walks_of_the_base_model_are_adequate_and_nothing_is_fitted(toy):
     d = diagnose_walks(tables, [toy, flatter], noise_sd=NOISE)
     assert d.verdict == "adequate" and d.cause is None, d.evidence
     assert d.extended == {} and all("lr" not in r for r in d.ranking)
+    assert len(d.residuals) == 2 and not any(r.systematic for r in d.residuals)
+    assert d.residuals_extended is None
     # every candidate screened (measured largest |z| 0.84; Bonferroni's level over the library's
     # candidates is about |z| 3)
     assert len(d.ranking) > 8 and all(abs(r["score_z"]) < 3.0 for r in d.ranking)
@@ -155,4 +157,7 @@ def test_three_walks_name_hip_dry_friction(toy, tmp_path):
     # every walk weighed by its own samples' scatter (no noise given, no SDs in the files)
     assert {w["noise_source"] for w in report["base"]["walks"]} == {"scatter within steps"}
     assert (tmp_path / "report" / "candidates.png").stat().st_size > 0
+    # each walk's residuals tested for a pattern repeated every step: the named cause leaves none
+    assert len(report["residuals"]) == 3 and not any(r["systematic"] for r in report["residuals_extended"])
+    assert (tmp_path / "report" / "residuals_by_phase.png").stat().st_size > 0
     assert "3 walks together" in (tmp_path / "report" / "report.md").read_text()
