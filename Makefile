@@ -1,10 +1,11 @@
-# One command each: `make demo`, `make test`, `make bench`. Each creates .venv on first use.
+# One command each: `make demo`, `make test` (`make test-fast` without the slow cases), `make bench`.
+# Each creates .venv on first use.
 PYTHON ?= python3.11
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test bench lint clean
+.PHONY: demo test test-fast bench lint clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -19,6 +20,11 @@ demo: $(STAMP)
 # tests stay in one process so that its module fixtures are built once.
 test: $(STAMP)
 	$(PY) -m pytest -q -n 2 --dist loadfile --durations=25
+
+# The suite less its cases marked slow (end-to-end analyses, rendered videos): a quick check while
+# working; `make test` (and CI) runs everything.
+test-fast: $(STAMP)
+	$(PY) -m pytest -q -n 2 --dist loadfile -m "not slow"
 
 bench: $(STAMP)
 	$(PY) benchmarks/run_all.py

@@ -2,7 +2,7 @@
 
     python docs/make_tie_design.py            -> docs/tie_design.csv (about 1 min)
     python docs/make_tie_design.py joint      -> docs/tie_joint.csv (about 8 min)
-    python docs/make_tie_design.py null FIRST LAST -> docs/tie_null.csv (about 3 min a seed)
+    python docs/make_tie_design.py null FIRST LAST -> docs/tie_null.csv (about 30 s a seed)
 
 On a walk of the stable toy on its cycle the hip's viscous and dry friction and the stance foot's
 pivot friction explain one another's walks (docs/diagnosis.md, "Each effect of the library hidden

@@ -77,7 +77,7 @@ def test_a_walk_whose_gait_search_fails_starts_from_the_last_walks_gait(toy, mon
 def test_walks_of_the_base_model_are_adequate_and_nothing_is_fitted(toy):
     """Two walks of the stable toy with nothing hidden, no free parameter (the command's default):
     the score tests stacked over the walks find no candidate significant, so the base is adequate
-    and no candidate is fitted, as in the single walk's analysis (docs/tie_null.csv: 10 of 10
+    and no candidate is fitted, as in the single walk's analysis (docs/tie_null.csv: 40 of 40
     adequate with three walks and two free parameters)."""
     flatter = toy.replace(slope=0.9 * toy.slope)
     tables = [_walk(p, 8, 0.002, 900 + k)[0] for k, p in enumerate((toy, flatter))]
