@@ -300,7 +300,9 @@ def _walks_phase_figure(d, folder: Path) -> Path:
     for j, base in enumerate(d.residuals):
         reports = [("base", base, "C0")]
         if d.residuals_extended is not None:
-            reports.append((d.cause, d.residuals_extended[j], "C3"))
+            # a picked cause that still left a pattern is unexplained (the evidence names it)
+            reports.append((d.causes[0] if d.causes else "picked cause, unexplained",
+                            d.residuals_extended[j], "C3"))
         for i, name in enumerate(names):
             _phase_panel(axes[i, j], name, reports)
         axes[0, j].set_title(f"walk {j + 1}", fontsize=9)

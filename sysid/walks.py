@@ -296,7 +296,8 @@ class WalksDiagnosis(Verdict):
         Each walk's base residuals tested for a pattern repeated every step
         (:func:`toywalk.sysid.residuals.residual_report`, at alpha over the walks).
     residuals_extended : list of ResidualReport or None
-        The same for the named cause's fit (None when nothing is named).
+        The same for the fit of the cause the rule picked (None when none was picked; kept when
+        its pattern left the cause ``unexplained``, the evidence naming it).
     """
 
     base: WalksFit
@@ -337,11 +338,12 @@ WALKS_RULE = ("adequate: no candidate's score test below alpha/K and no walk wit
               "analysis's held-out check is not made")
 
 
-def _patterns(tables, fit: WalksFit, alpha: float) -> list[ResidualReport]:
-    """Each walk's residuals at the joint fit tested for a pattern repeated every step, at
-    ``alpha`` over the walks (Bonferroni; each report splits its share over the signals)."""
-    return [residual_report(observations(t), w.residuals, alpha=alpha / len(tables))
-            for t, w in zip(tables, fit.walks, strict=True)]
+def _patterns(obs: list, fit: WalksFit, alpha: float) -> list[ResidualReport]:
+    """Each walk's residuals at the joint fit (``obs`` its observations) tested for a pattern
+    repeated every step, at ``alpha`` over the walks (Bonferroni; each report splits its share
+    over the signals)."""
+    return [residual_report(o, w.residuals, alpha=alpha / len(obs))
+            for o, w in zip(obs, fit.walks, strict=True)]
 
 
 def _pattern_note(reports: list[ResidualReport]) -> str:
@@ -368,7 +370,8 @@ def diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], 
        scored by its likelihood ratio against the base; none when the screening finds no
        candidate significant (the base is then adequate, as in the single walk's analysis).
     4. The rule (:data:`WALKS_RULE`): the single walk's, less its held-out check (folds of
-       strides within each walk are not built for several walks) and its residual pattern.
+       strides within each walk are not built for several walks); each walk's residuals are
+       tested for a pattern repeated every step, at the base fit and at the picked cause's.
 
     Parameters are those of :func:`toywalk.sysid.discrepancy.diagnose` (``params`` one per walk);
     ``fit_options`` go to :func:`fit_walks`.
@@ -387,7 +390,8 @@ def diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], 
         say(f"walks {dropped}: contact positions without SDs, not used")
     say(f"base fit of {len(tables)} walks ({', '.join(free) or 'no free parameters'})")
     base = fit_walks(tables, params, free, noise_sd=noise_sd, **fit_options)
-    patterns = _patterns(tables, base, alpha) if base.success else []
+    obs = [observations(t) for t in tables]
+    patterns = _patterns(obs, base, alpha) if base.success else []
     scores: dict = {}
     if base.success:
         say(f"screening {k} candidates by score tests")
@@ -430,7 +434,7 @@ def diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], 
         again = fit_walks(tables, params, free, noise_sd=noise_sd, warm=fitted[best_name], **fit_options)
         if again.success and again.chi2 < base_chi2:
             base, base_chi2 = again, again.chi2
-            patterns = _patterns(tables, base, alpha)
+            patterns = _patterns(obs, base, alpha)
     if not math.isfinite(base_chi2):
         raise DiagnoseError(f"the base model could not be fitted to the {len(tables)} walks: {base.status}")
     ranking = []
@@ -466,15 +470,17 @@ def diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], 
             verdict, cause = "discrepancy", "unexplained"
             evidence = (f"{lead['effect']} and {significant[1]['effect']} explain the walks within "
                         f"{gap:.1f} in chi-square (the rule asks {SEPARATION:.1f})")
-    if _pattern_note(patterns):
-        evidence += f"; the base model leaves a pattern repeated every step ({_pattern_note(patterns)})"
+    note = _pattern_note(patterns)
+    if note:
+        evidence += f"; the base model leaves a pattern repeated every step ({note})"
     named = extended.get(cause) if cause not in (None, "unexplained") else None
     patterns_named = None
     if named is not None:
-        patterns_named = _patterns(tables, named, alpha)
-        if _pattern_note(patterns_named):
+        patterns_named = _patterns(obs, named, alpha)
+        note = _pattern_note(patterns_named)
+        if note:
             evidence += (f"; {cause} improves the fit but leaves a pattern repeated every step "
-                         f"({_pattern_note(patterns_named)}): physics outside it remains")
+                         f"({note}): physics outside it remains")
             cause, named = "unexplained", None
     if dropped:
         evidence += f"; the contact positions of walk(s) {dropped} were not used: they have no SDs"

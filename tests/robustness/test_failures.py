@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import functools
 import json
+import subprocess
+import sys
 
 from toywalk.model.trajectory import read_trajectory
 
@@ -79,9 +81,6 @@ def test_a_reader_that_stops_early_gets_no_traceback():
     """`toywalk effects --json | head -c 50`: the reader closes the pipe before the command writes.
     The command stops quietly with status 141 (128 + SIGPIPE, as a shell reports a Unix tool
     stopped by a closed pipe), not with Python's BrokenPipeError traceback."""
-    import subprocess
-    import sys
-
     with subprocess.Popen([sys.executable, "-m", "toywalk.sysid.cli", "effects", "--json"],
                           stdout=subprocess.PIPE, stderr=subprocess.PIPE) as proc:
         proc.stdout.close()  # before the command has imported its modules, so before it writes
