@@ -14,7 +14,10 @@ a left-right signature that no symmetric parameter can mimic. Its gait is simula
 steps from the fixed point, sampled at 5 kHz (the renderer interpolates between samples: at
 ``simulate``'s default spacing the walker drawn departs from the model by up to 1.7 mrad), filmed by
 ``toywalk render`` at ``FPS`` frames/s with noise level 1 (sensor noise, motion blur, flicker,
-MPEG-4) by the default camera, which follows the walker as a person panning would.
+MPEG-4) by the default camera, which follows the walker as a person panning would. Why 60
+frames/s: a phone's ordinary rate, 11 frames a step of this walker, and a file under 5 MB (OpenCV's
+MPEG-4 writer has no quality setting and spends about 27 kB a frame on the sensor noise: at 120
+frames/s the video was 9.3 MB; tracked and analysed alike, ``docs/diagnosis.md``).
 
 Written into data/sample/:
 
@@ -56,7 +59,7 @@ HIDDEN = {"effects.asymmetry": 0.005}
 #: The builder's measurements of the two quantities the demo fits (the truth: 10.66 mm, 185.5 mm).
 MEASURED = {"foot_radius": 0.0110, "com_offset[1]": 0.1880}
 STEPS = 16
-FPS = 120
+FPS = 60
 SEED = 2026
 SAMPLE_RATE = 5000.0
 VIEWS = 8

@@ -10,6 +10,7 @@ a temporary name and renamed into place.
 
 from __future__ import annotations
 
+import math
 import os
 from pathlib import Path
 
@@ -65,9 +66,9 @@ def predictive_checks(post, draws: np.ndarray, rng, n_draws: int = PREDICTIVE_DR
         ``draws`` (used; a draw with no gait is skipped), ``low``, ``high`` (5 and 95 % of the
         model's angles, per observation), and ``checks``: per statistic ``measured``,
         ``replicated`` (list, one per draw; for chi2 the measured walk's discrepancy per draw),
-        ``p``.
+        ``p`` (NaN for a feature no step has enough samples to measure).
     """
-    from .residuals import step_features
+    from .residuals import finite_mean, step_features
 
     obs, sigma = post.obs, np.asarray(post.sigma, float)[:len(post.obs.value)]
     curves = []
@@ -79,8 +80,7 @@ def predictive_checks(post, draws: np.ndarray, rng, n_draws: int = PREDICTIVE_DR
     curves = np.array(curves)
     if not len(curves):
         return {"draws": 0, "low": None, "high": None, "checks": {}}
-    measured = {k: float(np.nanmean(v)) for k, v in step_features(obs, obs.value).items()
-                if k in CHECKED_FEATURES}
+    measured = {k: finite_mean(v) for k, v in step_features(obs, obs.value).items() if k in CHECKED_FEATURES}
     chi_obs, chi_rep, features = [], [], {k: [] for k in CHECKED_FEATURES}
     for curve in curves:
         rep = curve + sigma * rng.standard_normal(len(curve))
@@ -88,12 +88,16 @@ def predictive_checks(post, draws: np.ndarray, rng, n_draws: int = PREDICTIVE_DR
         chi_rep.append(float(np.sum(((rep - curve) / sigma) ** 2)))
         for k, v in step_features(obs, rep).items():
             if k in features:
-                features[k].append(float(np.nanmean(v)))
+                features[k].append(finite_mean(v))
     chi_obs, chi_rep = np.array(chi_obs), np.array(chi_rep)
     checks = {"chi2": {"measured": chi_obs.tolist(), "replicated": chi_rep.tolist(),
                        "p": float(np.mean(chi_rep >= chi_obs))}}
     for k, reps in features.items():
         reps = np.array(reps)
+        if not np.isfinite(measured[k]) or not np.all(np.isfinite(reps)):
+            # too few samples in every step to measure the feature (step_features)
+            checks[k] = {"measured": measured[k], "replicated": reps.tolist(), "p": math.nan}
+            continue
         above, below = np.mean(reps >= measured[k]), np.mean(reps <= measured[k])
         checks[k] = {"measured": measured[k], "replicated": reps.tolist(),
                      "p": float(min(1.0, 2.0 * min(above, below)))}
@@ -116,6 +120,11 @@ def _checks_figure(result: dict, path: Path) -> None:
             ax.plot(lim, lim, color="k", lw=0.8)
             ax.set_xlabel("chi-square, replicated walk", fontsize=8)
             ax.set_ylabel("chi-square, measured walk", fontsize=8)
+        elif not math.isfinite(c["p"]):
+            ax.text(0.5, 0.5, f"{name}:\nnot measured\n(too few samples a step)", ha="center",
+                    va="center", fontsize=8, transform=ax.transAxes)
+            ax.set_xticks([])
+            ax.set_yticks([])
         else:
             ax.hist(np.degrees(c["replicated"]), bins=15, color="0.6")
             ax.axvline(np.degrees(c["measured"]), color="r", lw=1.2)
@@ -245,6 +254,8 @@ def write_report(chain: Path, summary: dict, folder: Path, post=None, table=None
                 lines.append(f"| chi-square | {np.median(c['measured']):.1f} (median over draws) | "
                              f"{np.percentile(reps, 5):.1f} to {np.percentile(reps, 95):.1f} | "
                              f"{c['p']:.3f} |")
+            elif not math.isfinite(c["p"]):
+                lines.append(f"| {name} (deg) | not measured: too few samples a step | | |")
             else:
                 lines.append(f"| {name} (deg) | {np.degrees(c['measured']):.3f} | "
                              f"{np.degrees(np.percentile(reps, 5)):.3f} to "

@@ -38,8 +38,8 @@ from toywalk.model.trajectory import SIGNALS
 
 from .measurement import Observations
 
-__all__ = ["COMPONENTS", "FEATURES", "SCATTER_ORDER", "ResidualReport", "feature_misfit", "residual_report",
-           "scatter_noise", "step_features"]
+__all__ = ["COMPONENTS", "FEATURES", "SCATTER_ORDER", "ResidualReport", "feature_misfit", "finite_mean",
+           "residual_report", "scatter_noise", "step_features"]
 
 #: Per-step gait features (:func:`step_features`), with their unit.
 FEATURES = {"duration": "s", "lean_range": "rad", "steer_range": "rad", "steer_mean": "rad",
@@ -53,6 +53,8 @@ _LAGS = 10
 _BINS = 10
 #: Degree of the smooth curve whose range is a step's feature (:func:`step_features`).
 _SMOOTH_DEGREE = 6
+#: The lowest degree that still has a range to measure (a parabola's extreme within the step).
+_MIN_DEGREE = 2
 #: Order of the differences that measure the noise without a model (:func:`scatter_noise`). A
 #: smooth angle f adds ``h**4 d4f / sqrt(70)`` to a 4th difference of samples ``h`` apart: for the
 #: stable toy's swing pitch (0.3 rad at 2.5 Hz) filmed at 60 frames/s, 1.7e-4 rad, 0.4 % of a
@@ -272,7 +274,11 @@ def step_features(obs: Observations, values: np.ndarray) -> dict:
     Ranges are those of a smooth curve through each step's samples (Legendre polynomial of degree
     :data:`_SMOOTH_DEGREE` in the phase, by least squares): the raw samples' range grows with the
     noise (by about 4 SDs for 100 samples), so a noisy measurement would always seem to swing
-    more than a noiseless model."""
+    more than a noiseless model. A step with few samples of a signal (fewer than 13: a walker
+    taking 0.18 s a step filmed at 60 frames/s gives 11) gets the highest degree with at least
+    twice as many samples as coefficients, down to :data:`_MIN_DEGREE`; below that the feature
+    is NaN. The degree depends only on the samples, so a model's features at the same samples
+    are smoothed alike."""
     values = np.asarray(values, float)
     out = {k: np.full(obs.n_steps, np.nan) for k in FEATURES}
     out["duration"] = obs.durations.copy()
@@ -285,10 +291,11 @@ def step_features(obs: Observations, values: np.ndarray) -> dict:
         for name, key in (("lean", "lean_range"), ("steer", "steer_range"),
                           (stance, "stance_pitch_range"), (swing, "swing_pitch_range")):
             sel = in_step & (obs.signal == index[name])
-            if np.count_nonzero(sel) <= 2 * _SMOOTH_DEGREE:
+            degree = min(_SMOOTH_DEGREE, (np.count_nonzero(sel) - 1) // 2)
+            if degree < _MIN_DEGREE:
                 continue
             x = 2.0 * obs.phase[sel] - 1.0
-            coef = np.polynomial.legendre.legfit(x, values[sel], _SMOOTH_DEGREE)
+            coef = np.polynomial.legendre.legfit(x, values[sel], degree)
             curve = np.polynomial.legendre.legval(grid[(grid >= x.min()) & (grid <= x.max())], coef)
             out[key][k] = np.ptp(curve)
             if name == "steer":
@@ -334,7 +341,7 @@ def feature_misfit(obs: Observations, measured: np.ndarray, model: np.ndarray,
         if np.any(right) and np.any(~right):
             lr_meas = _lr(got[key], right)
             lr_model = _lr(want[key], right)
-            d = np.nanmean(diff[right]) - np.nanmean(diff[~right])
+            d = finite_mean(diff[right]) - finite_mean(diff[~right])
             se = math.hypot(_se(diff[right]), _se(diff[~right]))
             if key == "duration":  # the strikes' error bounds it from below, as above
                 floor = math.sqrt(float(np.mean(obs.duration_sd**2))
@@ -352,7 +359,13 @@ def _se(x: np.ndarray) -> float:
 
 
 def _lr(x: np.ndarray, right: np.ndarray) -> float:
-    return float(np.nanmean(x[right]) - np.nanmean(x[~right]))
+    return finite_mean(x[right]) - finite_mean(x[~right])
+
+
+def finite_mean(x: np.ndarray) -> float:
+    """The mean of the finite values of ``x``; NaN, quietly, when there are none."""
+    x = x[np.isfinite(x)]
+    return float(np.mean(x)) if len(x) else math.nan
 
 
 def _summary(diff: np.ndarray, unit: str, got: np.ndarray, want: np.ndarray) -> dict:

@@ -139,3 +139,24 @@ def test_scatter_noise_measures_white_noise_and_sees_correlated_noise():
     for s, name in enumerate(("lean", "steer", "pitch_left", "pitch_right")):
         want = np.concatenate([np.diff(obs.value[(obs.signal == s) & (obs.step == k)], 4) for k in range(3)])
         assert_allclose(scatter_noise(obs)[name]["sd"], np.sqrt(np.mean(want**2) / 70.0), rtol=1e-9)
+
+
+def test_features_of_a_walk_with_few_samples_a_step():
+    """A walker taking 0.18 s a step filmed at 60 frames/s gives 11 samples a step: the curve's
+    degree drops (to 5) so that every step still has its ranges, measured and model smoothed
+    alike (a sine's range within 1 %: the degree-5 curve through 11 samples), and the left-right
+    difference of a walk whose right steps were not seen is NaN, quietly (warnings are errors
+    here)."""
+    obs = _obs(n_steps=12, per_step=11)
+    amp = 0.05
+    measured = amp * np.sin(2 * np.pi * obs.phase) * (obs.signal == 0)
+    f = step_features(obs, measured)
+    assert np.all(np.isfinite(f["lean_range"])) and np.all(np.isfinite(f["swing_pitch_range"]))
+    assert_allclose(f["lean_range"], 2 * amp, rtol=0.01)
+    noisy = measured + np.random.default_rng(5).normal(0.0, 0.002, measured.shape)
+    misfit = feature_misfit(obs, noisy, 0.9 * measured, sigma=np.full(len(noisy), 0.002), rng=6)
+    assert misfit["lean_range"]["z"] > 5
+    assert np.isnan(step_features(_obs(n_steps=2, per_step=4), np.zeros(32))["lean_range"]).all()
+    right_unseen = np.where(obs.stance[obs.step] == "R", np.nan, measured)
+    assert np.isnan(feature_misfit(obs, right_unseen, 0.9 * measured)
+                    ["lean_range_right_minus_left"]["difference"])
