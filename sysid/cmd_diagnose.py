@@ -192,6 +192,10 @@ def _walks(args, out) -> int:
                                         "model": model, "software": _version()})
     print(f"verdict: {result.verdict}; cause: {result.cause} ({len(paths)} walks together)")
     print(f"evidence: {result.evidence}")
+    held = result.gain.get("held_out")
+    if held:
+        print(f"held-out chi-square (alternate strides of every walk): base {held['base']:.1f}, "
+              f"{held['candidate']} {held['extended']:.1f}")
     for row in result.ranking[:5]:
         extra = (f", likelihood ratio {row['lr']:.1f} (p = {row['lr_p']:.2g})" if "lr" in row else "")
         z = f"score z {row['score_z']:+.2f}" if "score_z" in row else "not screened"

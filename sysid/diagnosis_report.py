@@ -350,8 +350,18 @@ def _walks_markdown(d) -> str:
               f"({d.base.status}); shared changes: "
               + (", ".join(f"{n} {d.base.change[n]:+.4g} +- {d.base.std[n]:.2g}" for n in d.base.free)
                  or "none") + ".", "",
-              "![residuals by phase](residuals_by_phase.png)", "",
-              "## Candidates", "", "![candidates](candidates.png)", "",
+              "![residuals by phase](residuals_by_phase.png)", ""]
+    held = d.gain.get("held_out")
+    if held:
+        by_base, by_ext = held["by_walk"]["base"], held["by_walk"]["extended"]
+        # a fold that failed leaves its model no per-walk chi-squares
+        pairs = zip(by_base, by_ext, strict=True) if len(by_base) == len(by_ext) else ()
+        walks = ", ".join(f"walk {i + 1} {b:.1f} to {e:.1f}" for i, (b, e) in enumerate(pairs))
+        lines += [f"Held-out prediction by stride (alternate strides of every walk in two folds, the "
+                  f"walks fitted together on each): chi-square {_num(held['base'], '.1f')} for the base, "
+                  f"{_num(held['extended'], '.1f')} with {held['candidate']}"
+                  + (f" ({walks})" if walks else "") + ".", ""]
+    lines += ["## Candidates", "", "![candidates](candidates.png)", "",
               "| candidate | score z | likelihood ratio | p | estimate | 95 % interval |",
               "| --- | --- | --- | --- | --- | --- |"]
     for r in d.ranking:

@@ -35,7 +35,7 @@ from collections.abc import Sequence
 import casadi as ca
 import numpy as np
 from toywalk.model.parameters import Params
-from toywalk.model.trajectory import TrajectoryTable
+from toywalk.model.trajectory import SIGNALS, TrajectoryTable
 
 from .discrepancy import (
     ALPHA,
@@ -44,7 +44,10 @@ from .discrepancy import (
     Candidate,
     DiagnoseError,
     Verdict,
+    _masked,
+    _strides,
     candidates,
+    held_out_score,
     lr_p_value,
 )
 from .fit import (
@@ -62,8 +65,8 @@ from .fit import (
 from .measurement import observations
 from .residuals import ResidualReport, residual_report, scatter_noise
 
-__all__ = ["WALKS_RULE", "WalksDiagnosis", "WalksFit", "diagnose_walks", "fit_walks", "stacked",
-           "without_unweighed_contacts"]
+__all__ = ["WALKS_RULE", "WalksDiagnosis", "WalksFit", "diagnose_walks", "fit_walks", "held_out_walks",
+           "stacked", "without_unweighed_contacts"]
 
 
 @dataclasses.dataclass
@@ -332,10 +335,56 @@ class WalksDiagnosis(Verdict):
 
 WALKS_RULE = ("adequate: no candidate's score test below alpha/K and no walk with a pattern repeated "
               "every step (alpha over the walks and their signals); a cause is named when its "
-              "likelihood ratio (all walks together) is below alpha/K and it beats every other "
-              f"significant candidate by {SEPARATION:.1f} in chi-square; unexplained otherwise, or "
-              "when the extended model still leaves a repeated pattern in a walk. The single-walk "
-              "analysis's held-out check is not made")
+              "likelihood ratio (all walks together) is below alpha/K, it predicts held-out strides "
+              "better than the base (alternate strides of every walk in two folds, all walks fitted "
+              f"together on each), and it beats every other significant candidate by {SEPARATION:.1f} "
+              "in chi-square; unexplained otherwise, or when the extended model still leaves a "
+              "repeated pattern in a walk")
+
+
+def held_out_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], fit: WalksFit,
+                   **fit_options) -> dict:
+    """Held-out prediction grouped by stride for several walks fitted together: the alternate
+    strides of every walk form two folds (:func:`toywalk.sysid.discrepancy.held_out_tasks`, walk
+    by walk); the walks are fitted together on one fold (the other's samples kept with a huge SD,
+    so the model is read at them without their weighing in) and predict the other's angles, both
+    ways round, each walk's residuals weighed by its noise in ``fit``. Each fold's fit starts from
+    ``fit`` (the same free parameters, on all the samples); one that fails is refitted from the
+    other fold's, and a fold that still fails leaves the chi-square NaN with the reason.
+
+    Returns
+    -------
+    dict
+        ``chi2`` (held-out, all walks), ``by_walk`` (each walk's), ``success``, ``reason``.
+    """
+    fit_options.pop("noise_sd", None)
+    obs = [observations(t) for t in tables]
+    folds = []
+    for fold in (0, 1):
+        masked = []
+        for table, o, walk in zip(tables, obs, fit.walks, strict=True):
+            sd = {n: float(walk.noise_sd[n]) for n in SIGNALS if n in walk.noise_sd}
+            masked.append(_masked(table, o, np.flatnonzero(_strides(o.n_steps) == fold), sd))
+        folds.append(masked)
+
+    def run(masked, start):
+        try:  # the noise is in the folds' SD columns (a given noise_sd would unmask them)
+            return fit_walks(masked, params, fit.free, warm=start, **fit_options)
+        except FitError as err:
+            return str(err)
+
+    fits = [run(masked, fit) for masked in folds]
+    for k in (0, 1):
+        other = fits[1 - k]
+        if (isinstance(fits[k], str) or not fits[k].success) and not isinstance(other, str) and other.success:
+            fits[k] = run(folds[k], other)
+    failed = [f"fold {k}: {f if isinstance(f, str) else f.status}" for k, f in enumerate(fits)
+              if isinstance(f, str) or not f.success]
+    if failed:
+        return {"chi2": math.nan, "by_walk": [], "success": False, "reason": "; ".join(failed)}
+    by_walk = [held_out_score(table, [fits[0].walks[i], fits[1].walks[i]], walk.noise_sd)["chi2"]
+               for i, (table, walk) in enumerate(zip(tables, fit.walks, strict=True))]
+    return {"chi2": float(sum(by_walk)), "by_walk": by_walk, "success": True, "reason": ""}
 
 
 def _patterns(obs: list, fit: WalksFit, alpha: float) -> list[ResidualReport]:
@@ -369,9 +418,10 @@ def diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], 
     3. The best :data:`toywalk.sysid.discrepancy.MAX_EXTENDED` fitted (all walks together), each
        scored by its likelihood ratio against the base; none when the screening finds no
        candidate significant (the base is then adequate, as in the single walk's analysis).
-    4. The rule (:data:`WALKS_RULE`): the single walk's, less its held-out check (folds of
-       strides within each walk are not built for several walks); each walk's residuals are
-       tested for a pattern repeated every step, at the base fit and at the picked cause's.
+    4. The rule (:data:`WALKS_RULE`): the single walk's, its held-out check made on the walks
+       together (:func:`held_out_walks`: alternate strides of every walk in two folds; four more
+       joint fits, made only for a candidate that leads by the separation); each walk's residuals
+       are tested for a pattern repeated every step, at the base fit and at the picked cause's.
 
     Parameters are those of :func:`toywalk.sysid.discrepancy.diagnose` (``params`` one per walk);
     ``fit_options`` go to :func:`fit_walks`.
@@ -453,6 +503,7 @@ def diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], 
         ranking.append(row)
     ranking.sort(key=lambda r: -r.get("lr", -math.inf))
     significant = [r for r in ranking if "lr" in r and r["lr_p"] < alpha / k]
+    held: dict = {}
     if not significant and quiet:
         verdict, cause, evidence = "adequate", None, ("no candidate's score test is significant and no "
                                                       "walk's residuals repeat a pattern every step")
@@ -462,10 +513,24 @@ def diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], 
         lead = significant[0]
         gap = lead["lr"] - significant[1]["lr"] if len(significant) > 1 else math.inf
         if gap >= SEPARATION:
+            say(f"held-out prediction by stride: base and {lead['effect']}")
+            held = {"base": held_out_walks(tables, params, base, **fit_options),
+                    lead["effect"]: held_out_walks(tables, params, extended[lead["effect"]], **fit_options)}
+            held_gain = held["base"]["chi2"] - held[lead["effect"]]["chi2"]
+            lead["held_out_gain"] = held_gain
+        if gap >= SEPARATION and held_gain > 0:
             verdict, cause = "discrepancy", lead["effect"]
             evidence = (f"{lead['effect']} explains the {len(tables)} walks together {gap:.1f} better in "
                         "chi-square than the next significant candidate" if math.isfinite(gap) else
                         f"{lead['effect']} is the only significant candidate")
+            evidence += f", and predicts their held-out strides {held_gain:.1f} better than the base"
+        elif gap >= SEPARATION:
+            verdict, cause = "discrepancy", "unexplained"
+            reasons = "; ".join(h["reason"] for h in held.values() if h["reason"])
+            evidence = (f"{lead['effect']} fits the walks best but its held-out prediction could not be "
+                        f"scored ({reasons})" if math.isnan(held_gain) else
+                        f"{lead['effect']} fits the walks best but does not predict their held-out "
+                        f"strides better than the base ({held_gain:.1f} in chi-square)")
         else:
             verdict, cause = "discrepancy", "unexplained"
             evidence = (f"{lead['effect']} and {significant[1]['effect']} explain the walks within "
@@ -486,6 +551,12 @@ def diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], 
         evidence += f"; the contact positions of walk(s) {dropped} were not used: they have no SDs"
     gain = {"metric": "chi-square, all walks", "base": base_chi2,
             "extended": named.chi2 if named is not None else None}
+    if held:
+        name = next(n for n in held if n != "base")
+        gain["held_out"] = {"metric": "held-out chi-square (two folds of alternate strides, all walks)",
+                            "base": held["base"]["chi2"], "extended": held[name]["chi2"],
+                            "by_walk": {"base": held["base"]["by_walk"], "extended": held[name]["by_walk"]},
+                            "candidate": name}
     return WalksDiagnosis(verdict=verdict, cause=cause, causes=[cause] if named is not None else [],
                           ranking=ranking, gain=gain, evidence=evidence, base=base, extended=extended,
                           rule=WALKS_RULE, alpha=alpha, seconds=time.perf_counter() - clock,

@@ -160,4 +160,10 @@ def test_three_walks_name_hip_dry_friction(toy, tmp_path):
     # each walk's residuals tested for a pattern repeated every step: the named cause leaves none
     assert len(report["residuals"]) == 3 and not any(r["systematic"] for r in report["residuals_extended"])
     assert (tmp_path / "report" / "residuals_by_phase.png").stat().st_size > 0
-    assert "3 walks together" in (tmp_path / "report" / "report.md").read_text()
+    text = (tmp_path / "report" / "report.md").read_text()
+    assert "3 walks together" in text
+    # the named cause predicts the walks' held-out strides better: reported, printed, per walk
+    held = report["gain"]["held_out"]
+    assert held["candidate"] == "effects.hip_coulomb" and held["extended"] < held["base"], held
+    assert len(held["by_walk"]["base"]) == 3 and "Held-out prediction by stride" in text
+    assert "held-out chi-square (alternate strides of every walk)" in r.stdout
