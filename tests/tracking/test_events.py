@@ -253,11 +253,11 @@ def test_breakpoint_grid_matches_one_fit_at_a_time():
 
 def test_a_fast_smooth_turn_is_not_an_outlier():
     """The clearing walker filmed at 60 frames/s (10.6 frames a step; data/sample/walk.truth.csv,
-    every other sample): its swing leg reverses within three frames, which no quadratic through
-    five samples on one side predicts to a degree (the one-sided test flagged 37 and 27 of 175
-    samples, and the tracker then made them gaps: 0 of 15 heel strikes). Interpolation from both
-    sides follows the turn; a pose 3 degrees off, as a mirrored single-marker fit gives, is still
-    flagged."""
+    the sample video's truth, one sample a frame): its swing leg reverses within three frames,
+    which no quadratic through five samples on one side predicts to a degree (the one-sided test
+    flagged 37 and 27 of 175 samples, and the tracker then made them gaps: 0 of 15 heel strikes).
+    Interpolation from both sides follows the turn; a pose 3 degrees off, as a mirrored
+    single-marker fit gives, is still flagged."""
     import toywalk.tracking.events as ev
     from toywalk.model.trajectory import read_trajectory
 
@@ -265,7 +265,8 @@ def test_a_fast_smooth_turn_is_not_an_outlier():
 
     truth = read_trajectory(DATA / "sample" / "walk.truth.csv")
     rng = np.random.default_rng(0)
-    pl, pr = truth.signals["pitch_left"][::2], truth.signals["pitch_right"][::2]
+    pl, pr = truth.signals["pitch_left"], truth.signals["pitch_right"]
+    assert np.median(np.diff(truth.time)) == pytest.approx(1 / 60)
     count = ev.fit_samples_per_side(ev.step_samples(pl, pr), 5)
     assert count == 5
     jumps = [40, 77, 120]  # mid-swing and near strikes of the left leg
