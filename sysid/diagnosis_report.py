@@ -361,6 +361,20 @@ def _walks_markdown(d) -> str:
                   f"walks fitted together on each): chi-square {_num(held['base'], '.1f')} for the base, "
                   f"{_num(held['extended'], '.1f')} with {held['candidate']}"
                   + (f" ({walks})" if walks else "") + ".", ""]
+    if d.features:
+        n = len(d.features)
+        after = d.features_extended
+        lines += ["## Gait features", "",
+                  "Each walk's misfit of each gait feature in standard errors (measured minus model; "
+                  + ("base / the picked cause" if after else "base") + ").", "",
+                  "| feature | " + " | ".join(f"walk {k + 1}" for k in range(n)) + " |",
+                  "| --- |" + " --- |" * n]
+        for key in d.features[0]:
+            cells = [_num(f[key].get("z"), "+.1f")
+                     + (f" / {_num(after[k][key].get('z'), '+.1f')}" if after else "")
+                     for k, f in enumerate(d.features)]
+            lines.append(f"| {key} | " + " | ".join(cells) + " |")
+        lines.append("")
     lines += ["## Candidates", "", "![candidates](candidates.png)", "",
               "| candidate | score z | likelihood ratio | p | estimate | 95 % interval |",
               "| --- | --- | --- | --- | --- | --- |"]

@@ -63,7 +63,7 @@ from .fit import (
     score_statistics,
 )
 from .measurement import observations
-from .residuals import ResidualReport, residual_report, scatter_noise
+from .residuals import ResidualReport, feature_misfit, residual_report, scatter_noise
 
 __all__ = ["WALKS_RULE", "WalksDiagnosis", "WalksFit", "diagnose_walks", "fit_walks", "held_out_walks",
            "stacked", "without_unweighed_contacts"]
@@ -301,6 +301,9 @@ class WalksDiagnosis(Verdict):
     residuals_extended : list of ResidualReport or None
         The same for the fit of the cause the rule picked (None when none was picked; kept when
         its pattern left the cause ``unexplained``, the evidence naming it).
+    features, features_extended : list of dict, or None
+        Each walk's gait-feature misfits (:func:`toywalk.sysid.residuals.feature_misfit`) at the
+        base fit and at the picked cause's (None as ``residuals_extended``).
     """
 
     base: WalksFit
@@ -310,6 +313,8 @@ class WalksDiagnosis(Verdict):
     seconds: float = 0.0
     residuals: list = dataclasses.field(default_factory=list)
     residuals_extended: list | None = None
+    features: list = dataclasses.field(default_factory=list)
+    features_extended: list | None = None
 
     def to_json(self) -> dict:
         """``report.json`` (pipeline.md's fields, and each walk's base fit)."""
@@ -330,7 +335,8 @@ class WalksDiagnosis(Verdict):
                 "extended": {n: fit_json(f) for n, f in self.extended.items()},
                 "residuals": [r.to_json() for r in self.residuals],
                 "residuals_extended": None if self.residuals_extended is None else
-                [r.to_json() for r in self.residuals_extended]}
+                [r.to_json() for r in self.residuals_extended],
+                "features": self.features, "features_extended": self.features_extended}
 
 
 WALKS_RULE = ("adequate: no candidate's score test below alpha/K and no walk with a pattern repeated "
@@ -393,6 +399,25 @@ def _patterns(obs: list, fit: WalksFit, alpha: float) -> list[ResidualReport]:
     over the signals)."""
     return [residual_report(o, w.residuals, alpha=alpha / len(obs))
             for o, w in zip(obs, fit.walks, strict=True)]
+
+
+def _features(obs: list, fit: WalksFit) -> list[dict]:
+    """Each walk's gait-feature misfits at the joint fit (the model's features measured through
+    simulated noise of the walk's SDs, as the single walk's analysis does)."""
+    return [feature_misfit(o, o.value, o.value + w.residuals, w.model_durations,
+                           sigma=w.sigma[:len(o.value)], rng=0) for o, w in zip(obs, fit.walks, strict=True)]
+
+
+def _feature_note(features: list[dict], limit: float = 3.0) -> str:
+    """The features each walk misses by more than ``limit`` standard errors, largest first
+    (``walk 1: lean_range -7.6 SE``); empty when none does."""
+    parts = []
+    for i, f in enumerate(features):
+        strong = sorted(((abs(v["z"]), k) for k, v in f.items()
+                         if math.isfinite(v.get("z", math.nan)) and abs(v["z"]) > limit), reverse=True)
+        if strong:
+            parts.append(f"walk {i + 1}: " + ", ".join(f"{k} {f[k]['z']:+.1f} SE" for _, k in strong[:3]))
+    return "; ".join(parts)
 
 
 def _pattern_note(reports: list[ResidualReport]) -> str:
@@ -538,10 +563,15 @@ def diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], 
     note = _pattern_note(patterns)
     if note:
         evidence += f"; the base model leaves a pattern repeated every step ({note})"
+    features = _features(obs, base)
+    note = _feature_note(features)
+    if note:
+        evidence += f"; gait features the base misses ({note})"
     named = extended.get(cause) if cause not in (None, "unexplained") else None
-    patterns_named = None
+    patterns_named = features_named = None
     if named is not None:
         patterns_named = _patterns(obs, named, alpha)
+        features_named = _features(obs, named)
         note = _pattern_note(patterns_named)
         if note:
             evidence += (f"; {cause} improves the fit but leaves a pattern repeated every step "
@@ -560,4 +590,5 @@ def diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], 
     return WalksDiagnosis(verdict=verdict, cause=cause, causes=[cause] if named is not None else [],
                           ranking=ranking, gain=gain, evidence=evidence, base=base, extended=extended,
                           rule=WALKS_RULE, alpha=alpha, seconds=time.perf_counter() - clock,
-                          residuals=patterns, residuals_extended=patterns_named)
+                          residuals=patterns, residuals_extended=patterns_named, features=features,
+                          features_extended=features_named)

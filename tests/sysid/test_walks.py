@@ -89,6 +89,8 @@ def test_walks_of_the_base_model_are_adequate_and_nothing_is_fitted(toy):
     # every candidate screened (measured largest |z| 0.84; Bonferroni's level over the library's
     # candidates is about |z| 3)
     assert len(d.ranking) > 8 and all(abs(r["score_z"]) < 3.0 for r in d.ranking)
+    # each walk's gait features at the base fit, none for a cause
+    assert len(d.features) == 2 and "lean_range" in d.features[1] and d.features_extended is None
 
 
 def test_contact_positions_without_sds_are_left_out():
@@ -167,3 +169,8 @@ def test_three_walks_name_hip_dry_friction(toy, tmp_path):
     assert held["candidate"] == "effects.hip_coulomb" and held["extended"] < held["base"], held
     assert len(held["by_walk"]["base"]) == 3 and "Held-out prediction by stride" in text
     assert "held-out chi-square (alternate strides of every walk)" in r.stdout
+    # each walk's gait features, base and named cause: the cause brings the worst misfit closer
+    worst = [max(abs(v["z"]) for v in f.values() if v["z"] is not None) for f in report["features"]]
+    after = [max(abs(v["z"]) for v in f.values() if v["z"] is not None) for f in report["features_extended"]]
+    assert len(worst) == len(after) == 3 and max(after) < max(worst), (worst, after)
+    assert "## Gait features" in text
