@@ -341,7 +341,7 @@ def feature_misfit(obs: Observations, measured: np.ndarray, model: np.ndarray,
         if np.any(right) and np.any(~right):
             lr_meas = _lr(got[key], right)
             lr_model = _lr(want[key], right)
-            d = finite_mean(diff[right]) - finite_mean(diff[~right])
+            d = _lr(diff, right)
             se = math.hypot(_se(diff[right]), _se(diff[~right]))
             if key == "duration":  # the strikes' error bounds it from below, as above
                 floor = math.sqrt(float(np.mean(obs.duration_sd**2))
