@@ -39,7 +39,6 @@ def register(subparsers) -> None:
 
 
 def cmd_diagnose(args) -> int:
-    import os
     from pathlib import Path
 
     from toywalk.model.parameters import ParameterError
@@ -71,9 +70,7 @@ def cmd_diagnose(args) -> int:
         raise CommandError(str(err)) from err
 
     alpha = _alpha(args)
-    workers = min(4, os.cpu_count() or 1) if args.workers is None else args.workers
-    if workers < 1:
-        raise CommandError(f"--workers must be >= 1, got {workers}")
+    workers = _workers(args)
     free = _free(args)
     try:
         candidates(params, free, _split(args.effects), _split(args.parameters))
@@ -127,6 +124,19 @@ def _alpha(args) -> float:
     return alpha
 
 
+def _workers(args) -> int:
+    """``--workers``: by default one process a core, at most four (the candidates' fits and the
+    held-out folds run side by side)."""
+    import os
+
+    from toywalk.sysid.cli import CommandError
+
+    workers = min(4, os.cpu_count() or 1) if args.workers is None else args.workers
+    if workers < 1:
+        raise CommandError(f"--workers must be >= 1, got {workers}")
+    return workers
+
+
 def _free(args) -> list[str]:
     """``--free``'s names, checked before any fit: a misspelt one is refused at once, not after
     minutes of fitting."""
@@ -158,9 +168,7 @@ def _walks(args, out) -> int:
     if len(files) != len(paths):
         raise CommandError(f"{len(paths)} walks need one --params each or one for all, got "
                            f"{len(args.params)}")
-    if args.workers is not None or args.scheduler is not None:
-        raise CommandError("--workers and --scheduler apply to one walk; several walks are "
-                           "analysed in this process")
+    workers = _workers(args)
     params = [_load(f) for f in files]
     tables = []
     for path in paths:
@@ -185,7 +193,7 @@ def _walks(args, out) -> int:
             model = "transient" if "transient" in chosen else "periodic"
         result = diagnose_walks(tables, params, free=free, effects=_split(args.effects),
                                 parameters=_split(args.parameters), alpha=alpha, model=model,
-                                progress=_say)
+                                progress=_say, workers=workers, scheduler=args.scheduler)
     except (DiagnoseError, FitError, MeasurementError, ParameterError) as err:
         raise CommandError(str(err)) from err
     write_walks_diagnosis(result, out, {"trajectories": paths, "params": files, "free": free,

@@ -49,7 +49,7 @@ from toywalk.model.trajectory import SIGNALS, TrajectoryTable
 
 from .fit import FitError, FitResult, fit, fit_bounds, gait_period, score_tests
 from .measurement import observations
-from .residuals import ResidualReport, feature_misfit, residual_report, scatter_noise
+from .residuals import ResidualReport, feature_misfit, missed_features, residual_report, scatter_noise
 from .sample import worker_pool
 
 __all__ = ["ALPHA", "MAX_EXTENDED", "PARAMETERS", "SEPARATION", "Candidate", "Diagnosis",
@@ -340,27 +340,21 @@ def held_out(table: TrajectoryTable, params: Params, free, noise: dict, warm: Fi
     return held_out_score(table, held_out_fits(tasks, workers), noise)
 
 
-def held_out_fits(tasks: list[dict], workers: int = 1, scheduler: str | None = None) -> list:
+def held_out_fits(tasks: list[dict], workers: int = 1, scheduler: str | None = None,
+                  runner=None) -> list:
     """:func:`run_fits` of fold tasks (:func:`held_out_tasks`, consecutive pairs of one model's
     two folds), each fold whose fit fails retried once from the other fold's converged fit (or,
-    when neither converged, from the model's own start: ``warm`` None).
+    when neither converged, from the model's own start: ``warm`` None). ``runner`` as
+    :func:`run_fits`'s (the joint analysis of several walks passes its own).
 
     Why: started from the whole walk's optimum, a fold's fit can wander off. On a 12-step walk of
     the stable toy with a cross slope of 1.0667e-3 (seed 207 of docs/make_diagnose_validation.py)
     one fold's fit of the cross slope ended in IPOPT's restoration failure; scored, it made the
     extended model's held-out chi-square 350 worse than the base's, and the analysis called the
     walk unexplained. Refitted from the other fold's, it converges and the model gains 205."""
-    fits = run_fits(tasks, workers, scheduler)
-    retry = {}
-    for k, f in enumerate(fits):
-        if isinstance(f, str) or f.success:
-            continue
-        other = fits[k ^ 1]
-        if not isinstance(other, str) and other.success:
-            retry[k] = dict(tasks[k], params=other.params, warm=other)
-        else:
-            retry[k] = dict(tasks[k], warm=None)
-    for k, f in zip(retry, run_fits(list(retry.values()), workers, scheduler), strict=True):
+    fits = run_fits(tasks, workers, scheduler, runner)
+    retry = {k: _restarted(tasks[k], start) for k, start in _fold_retries(fits).items()}
+    for k, f in zip(retry, run_fits(list(retry.values()), workers, scheduler, runner), strict=True):
         if not isinstance(f, str):
             f.warnings.append(f"refitted from {'the other fold' if retry[k]['warm'] else 'its start'}: "
                               f"the first fit from the whole walk's ended with {fits[k].status}")
@@ -368,14 +362,40 @@ def held_out_fits(tasks: list[dict], workers: int = 1, scheduler: str | None = N
     return fits
 
 
-def run_fits(tasks: list[dict], workers: int = 1, scheduler: str | None = None) -> list:
-    """:func:`toywalk.sysid.fit.fit` of each task's keyword arguments: in this process, in
-    ``workers`` local processes, or on a Dask cluster (``scheduler``); a fit that cannot be set
-    up gives its reason (a string) in its place."""
+def _fold_retries(fits: list) -> dict:
+    """Of fold fits in consecutive pairs (one model's two folds; a string where a fit could not
+    be set up), each that failed, mapped to the fit to start it again from: the other fold's,
+    when that converged, else None (the model's own start)."""
+    retry = {}
+    for k, f in enumerate(fits):
+        if isinstance(f, str) or f.success:
+            continue
+        other = fits[k ^ 1]
+        retry[k] = other if not isinstance(other, str) and other.success else None
+    return retry
+
+
+def _restarted(task: dict, start) -> dict:
+    """A fit's task started again from the fit ``start`` (None: from the model's own start). A
+    single walk's fit also takes ``start``'s parameters (:func:`toywalk.sysid.fit.fit`'s
+    ``params`` hold its ``warm``'s estimates); a joint fit of several walks
+    (:class:`toywalk.sysid.walks.WalksFit`, no ``params``) reads them from ``warm`` itself."""
+    if start is None:
+        return dict(task, warm=None)
+    params = getattr(start, "params", None)
+    return dict(task, warm=start, **({} if params is None else {"params": params}))
+
+
+def run_fits(tasks: list[dict], workers: int = 1, scheduler: str | None = None, runner=None) -> list:
+    """``runner`` (default :func:`toywalk.sysid.fit.fit`, a fit that cannot be set up giving its
+    reason, a string, in its place) of each task's keyword arguments: in this process, in
+    ``workers`` local processes, or on a Dask cluster (``scheduler``). ``runner`` must be a
+    module-level function, so that worker processes can unpickle it."""
+    runner = runner or _fit_or_reason
     if len(tasks) <= 1 or (workers <= 1 and not scheduler):
-        return [_fit_or_reason(t) for t in tasks]
+        return [runner(t) for t in tasks]
     with worker_pool(min(workers, len(tasks)), scheduler) as pool:
-        return list(pool.map(_fit_or_reason, tasks))
+        return list(pool.map(runner, tasks))
 
 
 def _fit_or_reason(task: dict):
@@ -445,7 +465,7 @@ def diagnose(table: TrajectoryTable, params: Params, *, free=(), effects=None, p
     obs = observations(table)
     noise_note = ""
     if base.noise_source == "estimated from residuals":
-        noise, noise_note = _scatter_check(obs, base)
+        noise, taken, noise_note = _scatter_check(obs, base)
         if noise is not None:
             say("refitting the base with the noise of the samples' scatter")
             again, strikes_again, fallback_again = _base_fit(
@@ -453,9 +473,7 @@ def diagnose(table: TrajectoryTable, params: Params, *, free=(), effects=None, p
             seconds["base"] += again.seconds
             if again.success:
                 again.noise_source = "scatter within steps (4th differences)" + (
-                    "" if all(noise[n] != base.noise_sd.get(n) for n in noise)
-                    else f" for {', '.join(n for n in noise if noise[n] != base.noise_sd.get(n))}; "
-                    "the others' residual RMS")
+                    "" if len(taken) == len(noise) else f" for {', '.join(taken)}; the others' residual RMS")
                 base, strikes, fallback = again, strikes_again, fallback or fallback_again
             else:
                 noise_note += (f"; refitted with the scatter as the noise the base did not converge "
@@ -633,9 +651,10 @@ def _base_fit(table, params: Params, free, options: dict, say,
     return base, "measured", fallback
 
 
-def _scatter_check(obs, base: FitResult) -> tuple[dict | None, str]:
-    """The noise SDs to refit the base with where its residual RMS is mostly misfit, and what was
-    found, in words (empty: nothing to say); None: keep the residual RMS.
+def _scatter_check(obs, base: FitResult) -> tuple[dict | None, list[str], str]:
+    """The noise SDs to refit the base with where its residual RMS is mostly misfit (None: keep
+    the residual RMS), the signals whose noise is their scatter in it, and what was found, in
+    words (empty: nothing to say).
 
     A signal whose residual RMS is more than :data:`NOISE_INFLATION` times its samples' scatter
     takes the scatter as its noise, provided its scatter is white (:data:`NOISE_WHITENESS`);
@@ -647,11 +666,11 @@ def _scatter_check(obs, base: FitResult) -> tuple[dict | None, str]:
     scatter = scatter_noise(obs)
     ratio = {n: base.noise_sd[n] / v["sd"] for n, v in scatter.items() if v["sd"] > 0 and n in base.noise_sd}
     if not ratio or max(ratio.values()) <= NOISE_INFLATION:
-        return None, ""
+        return None, [], ""
     shown = ", ".join(f"{n} {r:.1f}" for n, r in ratio.items())
     white = {n: v["sd_alternate"] / v["sd"] for n, v in scatter.items() if v["sd"] > 0}
     if len(ratio) == len(scatter) and max(white.values()) <= NOISE_WHITENESS:
-        return ({n: v["sd"] for n, v in scatter.items()},
+        return ({n: v["sd"] for n, v in scatter.items()}, list(scatter),
                 f"the noise is the samples' scatter within steps: the base fit's residual RMS is {shown} "
                 "times it, mostly the model's misfit")
     # judged by kind of signal: the two legs' pitches together, so that the weights keep the
@@ -668,7 +687,7 @@ def _scatter_check(obs, base: FitResult) -> tuple[dict | None, str]:
                   "give the noise SD")
     unmeasured = "not every signal's scatter could be measured: give the noise SD"
     if not taken or len(ratio) < len(scatter):
-        return None, (f"the base fit's residual RMS is {max(ratio.values()):.1f} times the samples' "
+        return None, [], (f"the base fit's residual RMS is {max(ratio.values()):.1f} times the samples' "
                       f"scatter ({shown}), but " + (correlated if refused else unmeasured))
     note = (f"the noise of {', '.join(taken)} is the samples' scatter within steps (the base fit's "
             f"residual RMS is {shown} times it, mostly the model's misfit); the other signals keep "
@@ -676,7 +695,7 @@ def _scatter_check(obs, base: FitResult) -> tuple[dict | None, str]:
             "that over every sample)")
     if refused:
         note += f"; {correlated}"
-    return {n: (scatter[n]["sd"] if n in taken else base.noise_sd[n]) for n in scatter}, note
+    return {n: (scatter[n]["sd"] if n in taken else base.noise_sd[n]) for n in scatter}, taken, note
 
 
 def _evidence(res: ResidualReport, features: dict, top: list) -> str:
@@ -685,11 +704,10 @@ def _evidence(res: ResidualReport, features: dict, top: list) -> str:
     if res.systematic:
         parts.append("a pattern repeated every step in " + ", ".join(
             f"{n} (p = {res.tests[n]['pattern_p']:.2g})" for n in res.systematic))
-    strong = sorted(((abs(v["z"]), k) for k, v in features.items()
-                     if math.isfinite(v.get("z", math.nan)) and abs(v["z"]) > 3), reverse=True)
-    if strong:
-        parts.append("gait features missed: " + ", ".join(
-            f"{k} by {features[k]['z']:+.1f} SE" for _, k in strong[:4]))
+    missed = missed_features(features)
+    if missed:
+        parts.append("gait features missed: " + ", ".join(f"{k} by {features[k]['z']:+.1f} SE"
+                                                          for k in missed[:4]))
     parts.append("score tests point to " + ", ".join(
         f"{r['effect']} (z = {r['score_z']:+.1f})" for r in top))
     return "; ".join(parts)

@@ -39,7 +39,7 @@ from toywalk.model.trajectory import SIGNALS
 from .measurement import Observations
 
 __all__ = ["COMPONENTS", "FEATURES", "SCATTER_ORDER", "ResidualReport", "feature_misfit", "finite_mean",
-           "residual_report", "scatter_noise", "step_features"]
+           "missed_features", "residual_report", "scatter_noise", "step_features"]
 
 #: Per-step gait features (:func:`step_features`), with their unit.
 FEATURES = {"duration": "s", "lean_range": "rad", "steer_range": "rad", "steer_mean": "rad",
@@ -351,6 +351,14 @@ def feature_misfit(obs: Observations, measured: np.ndarray, model: np.ndarray,
                 "measured": lr_meas, "model": lr_model, "difference": float(d), "se": se,
                 "z": float(d / se) if se > 0 else math.nan, "unit": unit}
     return out
+
+
+def missed_features(features: dict, limit: float = 3.0) -> list[str]:
+    """The features of :func:`feature_misfit` missed by more than ``limit`` standard errors,
+    largest misfit first."""
+    strong = sorted(((abs(v["z"]), k) for k, v in features.items()
+                     if math.isfinite(v.get("z", math.nan)) and abs(v["z"]) > limit), reverse=True)
+    return [k for _, k in strong]
 
 
 def _se(x: np.ndarray) -> float:

@@ -47,8 +47,10 @@ from .discrepancy import (
     _masked,
     _strides,
     candidates,
+    held_out_fits,
     held_out_score,
     lr_p_value,
+    run_fits,
 )
 from .fit import (
     CONTACT_KEYS,
@@ -63,7 +65,7 @@ from .fit import (
     score_statistics,
 )
 from .measurement import observations
-from .residuals import ResidualReport, feature_misfit, residual_report, scatter_noise
+from .residuals import ResidualReport, feature_misfit, missed_features, residual_report, scatter_noise
 
 __all__ = ["WALKS_RULE", "WalksDiagnosis", "WalksFit", "diagnose_walks", "fit_walks", "held_out_walks",
            "stacked", "without_unweighed_contacts"]
@@ -91,6 +93,8 @@ class WalksFit:
     status : str
         IPOPT's return status of the joint problem.
     seconds : float
+    warnings : list of str
+        What the fit's caller should know (a held-out fold's refit, for one).
     """
 
     free: list
@@ -104,6 +108,7 @@ class WalksFit:
     success: bool
     status: str
     seconds: float = 0.0
+    warnings: list = dataclasses.field(default_factory=list)
 
     def interval(self, name: str, z: float = 1.959964) -> tuple[float, float]:
         """The 95 % (``z``) interval of ``name``'s value in the first walk's terms."""
@@ -349,41 +354,44 @@ WALKS_RULE = ("adequate: no candidate's score test below alpha/K and no walk wit
 
 
 def held_out_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], fit: WalksFit,
-                   **fit_options) -> dict:
+                   workers: int = 1, scheduler: str | None = None, **fit_options) -> dict:
     """Held-out prediction grouped by stride for several walks fitted together: the alternate
     strides of every walk form two folds (:func:`toywalk.sysid.discrepancy.held_out_tasks`, walk
     by walk); the walks are fitted together on one fold (the other's samples kept with a huge SD,
     so the model is read at them without their weighing in) and predict the other's angles, both
     ways round, each walk's residuals weighed by its noise in ``fit``. Each fold's fit starts from
     ``fit`` (the same free parameters, on all the samples); one that fails is refitted from the
-    other fold's, and a fold that still fails leaves the chi-square NaN with the reason.
+    other fold's, or from the walks' files when neither converged (the single walk's rule,
+    :func:`toywalk.sysid.discrepancy.held_out_fits`; the two folds in ``workers`` processes or on
+    a Dask cluster, ``scheduler``), and a fold that still fails leaves the chi-square NaN with the
+    reason.
 
     Returns
     -------
     dict
         ``chi2`` (held-out, all walks), ``by_walk`` (each walk's), ``success``, ``reason``.
     """
+    tasks = _held_out_walk_tasks(tables, params, fit, **fit_options)
+    return _held_out_walk_score(tables, fit, held_out_fits(tasks, workers, scheduler, _fit_walks_or_reason))
+
+
+def _held_out_walk_tasks(tables, params, fit: WalksFit, **fit_options) -> list[dict]:
+    """The two folds' joint fits of :func:`held_out_walks`, as keyword arguments of :func:`fit_walks`."""
+    # the noise is in the folds' SD columns (a given noise_sd would unmask them)
     fit_options.pop("noise_sd", None)
     obs = [observations(t) for t in tables]
-    folds = []
+    tasks = []
     for fold in (0, 1):
         masked = []
         for table, o, walk in zip(tables, obs, fit.walks, strict=True):
             sd = {n: float(walk.noise_sd[n]) for n in SIGNALS if n in walk.noise_sd}
             masked.append(_masked(table, o, np.flatnonzero(_strides(o.n_steps) == fold), sd))
-        folds.append(masked)
+        tasks.append(dict(tables=masked, params=list(params), free=list(fit.free), warm=fit, **fit_options))
+    return tasks
 
-    def run(masked, start):
-        try:  # the noise is in the folds' SD columns (a given noise_sd would unmask them)
-            return fit_walks(masked, params, fit.free, warm=start, **fit_options)
-        except FitError as err:
-            return str(err)
 
-    fits = [run(masked, fit) for masked in folds]
-    for k in (0, 1):
-        other = fits[1 - k]
-        if (isinstance(fits[k], str) or not fits[k].success) and not isinstance(other, str) and other.success:
-            fits[k] = run(folds[k], other)
+def _held_out_walk_score(tables, fit: WalksFit, fits: list) -> dict:
+    """:func:`held_out_walks`' result from its two folds' fits (a string where one could not be set up)."""
     failed = [f"fold {k}: {f if isinstance(f, str) else f.status}" for k, f in enumerate(fits)
               if isinstance(f, str) or not f.success]
     if failed:
@@ -391,6 +399,14 @@ def held_out_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], 
     by_walk = [held_out_score(table, [fits[0].walks[i], fits[1].walks[i]], walk.noise_sd)["chi2"]
                for i, (table, walk) in enumerate(zip(tables, fit.walks, strict=True))]
     return {"chi2": float(sum(by_walk)), "by_walk": by_walk, "success": True, "reason": ""}
+
+
+def _fit_walks_or_reason(task: dict):
+    """:func:`fit_walks` of a task's keyword arguments, or why it could not be set up (a string)."""
+    try:
+        return fit_walks(**task)
+    except FitError as err:
+        return str(err)
 
 
 def _patterns(obs: list, fit: WalksFit, alpha: float) -> list[ResidualReport]:
@@ -411,13 +427,8 @@ def _features(obs: list, fit: WalksFit) -> list[dict]:
 def _feature_note(features: list[dict], limit: float = 3.0) -> str:
     """The features each walk misses by more than ``limit`` standard errors, largest first
     (``walk 1: lean_range -7.6 SE``); empty when none does."""
-    parts = []
-    for i, f in enumerate(features):
-        strong = sorted(((abs(v["z"]), k) for k, v in f.items()
-                         if math.isfinite(v.get("z", math.nan)) and abs(v["z"]) > limit), reverse=True)
-        if strong:
-            parts.append(f"walk {i + 1}: " + ", ".join(f"{k} {f[k]['z']:+.1f} SE" for _, k in strong[:3]))
-    return "; ".join(parts)
+    return "; ".join(f"walk {i + 1}: " + ", ".join(f"{k} {f[k]['z']:+.1f} SE" for k in missed[:3])
+                     for i, f in enumerate(features) for missed in [missed_features(f, limit)] if missed)
 
 
 def _pattern_note(reports: list[ResidualReport]) -> str:
@@ -429,7 +440,8 @@ def _pattern_note(reports: list[ResidualReport]) -> str:
 
 def diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], *, free=(),
                    effects=None, parameters=None, alpha: float = ALPHA, noise_sd: dict | None = None,
-                   progress=None, **fit_options) -> WalksDiagnosis:
+                   progress=None, workers: int = 1, scheduler: str | None = None,
+                   **fit_options) -> WalksDiagnosis:
     """What the base model lacks, from several walks of one walker under known conditions
     (:func:`fit_walks`); the single walk's analysis is :func:`toywalk.sysid.discrepancy.diagnose`.
 
@@ -448,8 +460,9 @@ def diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], 
        joint fits, made only for a candidate that leads by the separation); each walk's residuals
        are tested for a pattern repeated every step, at the base fit and at the picked cause's.
 
-    Parameters are those of :func:`toywalk.sysid.discrepancy.diagnose` (``params`` one per walk);
-    ``fit_options`` go to :func:`fit_walks`.
+    Parameters are those of :func:`toywalk.sysid.discrepancy.diagnose` (``params`` one per walk;
+    ``workers`` processes or a Dask ``scheduler`` run the candidates' fits side by side, and the
+    held-out folds' four); ``fit_options`` go to :func:`fit_walks`.
     """
     say = progress or (lambda _msg: None)
     clock = time.perf_counter()
@@ -495,13 +508,15 @@ def diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], 
     quiet = bool(scores) and not any_score and not any(r.systematic for r in patterns)
     chosen = [] if quiet else order[:MAX_EXTENDED] if scores else order
     extended: dict = {}
-    for c in chosen:
-        say(f"fitting {c.name} on all walks")
-        try:
-            extended[c.name] = fit_walks(tables, params, free + [c.name], noise_sd=noise_sd,
-                                         warm=base if base.success else None, **fit_options)
-        except FitError as err:
-            say(f"{c.name}: {err}")
+    if chosen:
+        say(f"fitting {', '.join(c.name for c in chosen)} on all walks")
+    tasks = [dict(tables=tables, params=list(params), free=free + [c.name], noise_sd=noise_sd,
+                  warm=base if base.success else None, **fit_options) for c in chosen]
+    for c, f in zip(chosen, run_fits(tasks, workers, scheduler, _fit_walks_or_reason), strict=True):
+        if isinstance(f, str):
+            say(f"{c.name}: {f}")
+        else:
+            extended[c.name] = f
     fitted = {n: f for n, f in extended.items() if f.success}
     base_chi2 = base.chi2 if base.success else math.inf
     if fitted:  # the base's nearby minimum, from the best candidate held at its null value
@@ -539,8 +554,12 @@ def diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], 
         gap = lead["lr"] - significant[1]["lr"] if len(significant) > 1 else math.inf
         if gap >= SEPARATION:
             say(f"held-out prediction by stride: base and {lead['effect']}")
-            held = {"base": held_out_walks(tables, params, base, **fit_options),
-                    lead["effect"]: held_out_walks(tables, params, extended[lead["effect"]], **fit_options)}
+            named_fit = extended[lead["effect"]]
+            tasks = (_held_out_walk_tasks(tables, params, base, **fit_options)
+                     + _held_out_walk_tasks(tables, params, named_fit, **fit_options))
+            fits = held_out_fits(tasks, workers, scheduler, _fit_walks_or_reason)
+            held = {"base": _held_out_walk_score(tables, base, fits[:2]),
+                    lead["effect"]: _held_out_walk_score(tables, named_fit, fits[2:])}
             held_gain = held["base"]["chi2"] - held[lead["effect"]]["chi2"]
             lead["held_out_gain"] = held_gain
         if gap >= SEPARATION and held_gain > 0:

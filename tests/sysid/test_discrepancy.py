@@ -107,7 +107,7 @@ def test_a_failed_fold_fit_is_retried_and_never_scored(monkeypatch):
              _fold_fit(False, "extended 0"), _fold_fit(False, "extended 1")]
     calls = []
 
-    def fake_run_fits(tasks, workers=1, scheduler=None):
+    def fake_run_fits(tasks, workers=1, scheduler=None, runner=None):
         calls.append(tasks)
         return list(first) if len(calls) == 1 else [_fold_fit(True, f"retry {k}") for k in range(len(tasks))]
 
@@ -120,6 +120,13 @@ def test_a_failed_fold_fit_is_retried_and_never_scored(monkeypatch):
     assert retried[1]["warm"] is None and retried[2]["warm"] is None  # neither converged
     assert fits[0] is first[0] and all(f.success for f in fits)
     assert "Restoration_Failed" in fits[1].warnings[0]
+    # the joint analysis's folds (toywalk.sysid.walks.held_out_walks) take the same rule; a joint
+    # fit has no parameter set of its own, and restarts from the other fold's fit alone
+    calls.clear()
+    joint = [SimpleNamespace(**{k: v for k, v in vars(f).items() if k != "params"}) for f in first]
+    first[:] = joint
+    discrepancy.held_out_fits([{"fold": k, "warm": "whole walks"} for k in range(4)], runner=print)
+    assert calls[1][0] == {"fold": 1, "warm": joint[0]} and calls[1][1]["warm"] is None
     # scoring: a fold that did not converge leaves no chi-square, and says why
     score = discrepancy.held_out_score(_walk_table(), [first[0], first[1]], {})
     assert np.isnan(score["chi2"]) and not score["success"]
@@ -155,8 +162,9 @@ def test_the_noise_of_the_scatter_is_chosen_signal_by_signal():
     scatter = {n: v["sd"] for n, v in scatter_noise(obs).items()}
     base = SimpleNamespace(noise_sd={"lean": sd, "steer": 10 * sd, "pitch_left": sd, "pitch_right": sd,
                                      "strike_time": 1e-5})
-    noise, note = discrepancy._scatter_check(obs, base)
+    noise, taken, note = discrepancy._scatter_check(obs, base)
     assert noise == {"lean": sd, "steer": scatter["steer"], "pitch_left": sd, "pitch_right": sd}
+    assert taken == ["steer"]  # what the base's noise_source names
     assert abs(scatter["steer"] / sd - 1) < 0.4  # the scatter's spread: tests/sysid/test_residuals.py
     assert "noise of steer is the samples' scatter" in note
     assert "pitch_left, pitch_right is correlated" in note
@@ -171,4 +179,5 @@ def test_the_noise_of_the_scatter_is_chosen_signal_by_signal():
     assert noise["pitch_left"] == noise["pitch_right"] == 3 * sd and noise["steer"] < 2 * sd
     obs.value = _walk_signals(obs, rng.normal(0.0, sd, len(obs.time)))
     white = {n: v["sd"] for n, v in scatter_noise(obs).items()}
-    assert discrepancy._scatter_check(obs, base)[0] == white
+    noise, taken, _ = discrepancy._scatter_check(obs, base)
+    assert noise == white and taken == list(white)

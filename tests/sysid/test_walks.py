@@ -74,6 +74,29 @@ def test_a_walk_whose_gait_search_fails_starts_from_the_last_walks_gait(toy, mon
     assert fallback.chi2 == pytest.approx(plain.chi2, rel=1e-8)
 
 
+@pytest.mark.slow
+def test_held_out_folds_in_processes_and_on_dask_are_the_serial_ones(toy, tmp_path):
+    """The joint analysis runs its fits side by side (``workers``, ``scheduler``): the held-out
+    prediction of two walks fitted together is the same in this process, in two local processes
+    and on a Dask cluster (a real one, on the loopback address)."""
+    from distributed import LocalCluster
+    from toywalk.sysid.walks import held_out_walks
+
+    flatter = toy.replace(slope=0.95 * toy.slope)
+    tables = [_walk(p, 6, 0.002, 31 + k)[0] for k, p in enumerate((toy, flatter))]
+    whole = fit_walks(tables, [toy, flatter], FREE, noise_sd=NOISE)
+    serial = held_out_walks(tables, [toy, flatter], whole)
+    local = held_out_walks(tables, [toy, flatter], whole, workers=2)
+    with LocalCluster(n_workers=2, threads_per_worker=1, host="127.0.0.1", dashboard_address=None,
+                      processes=True) as cluster:
+        dask = held_out_walks(tables, [toy, flatter], whole, scheduler=cluster.scheduler_address)
+    assert serial["success"] and len(serial["by_walk"]) == 2, serial
+    # the same NLPs from the same starts; IPOPT's iterations are deterministic, so the results
+    # agree to round-off (measured: equal)
+    for other in (local, dask):
+        assert_allclose(other["by_walk"], serial["by_walk"], rtol=1e-9)
+
+
 def test_walks_of_the_base_model_are_adequate_and_nothing_is_fitted(toy):
     """Two walks of the stable toy with nothing hidden, no free parameter (the command's default):
     the score tests stacked over the walks find no candidate significant, so the base is adequate
