@@ -25,7 +25,9 @@ FRICTIONS = ["hip_damping", "hip_coulomb", "pivot_friction"]
     # [4.88e-5, 5.21e-5], the rivals 148.8 (pivot friction) and more behind in chi-square
     ("hip_damping", 4.960607427935393e-05, 600, FRICTIONS, True),
     # measured [6.533e-4, 6.933e-4], the rivals 229.3 and more behind; the base fit from its cold
-    # start fails on these walks (IPOPT's restoration) and is refitted from the best candidate's
+    # start failed on these walks at earlier versions of the fit (IPOPT's restoration), and
+    # converges at this one (chi-square 5943.1); diagnose_walks refits a failed base from the best
+    # candidate's fit
     ("pivot_friction", 0.0006534658516680863, 620, FRICTIONS, True),
 ])
 def test_three_walks_name_an_effect_one_walk_leaves_tied(effect, truth, seed, rivals, offsets):
