@@ -39,7 +39,7 @@ from toywalk.model.trajectory import SIGNALS
 from .measurement import Observations
 
 __all__ = ["COMPONENTS", "FEATURES", "SCATTER_ORDER", "ResidualReport", "feature_misfit", "finite_mean",
-           "missed_features", "residual_report", "scatter_noise", "step_features"]
+           "missed_features", "residual_report", "step_dependence", "scatter_noise", "step_features"]
 
 #: Per-step gait features (:func:`step_features`), with their unit.
 FEATURES = {"duration": "s", "lean_range": "rad", "steer_range": "rad", "steer_mean": "rad",
@@ -359,6 +359,73 @@ def missed_features(features: dict, limit: float = 3.0) -> list[str]:
     strong = sorted(((abs(v["z"]), k) for k, v in features.items()
                      if math.isfinite(v.get("z", math.nan)) and abs(v["z"]) > limit), reverse=True)
     return [k for _, k in strong]
+
+
+#: Degrees of :func:`step_dependence`'s curves in the phase of the step: the pattern common to
+#: every step of a foot (a misfit's, however shaped), and each step's own departure from it (a
+#: walk converging to its cycle changes slowly from step to step, smoothly within a step).
+STEP_PATTERN_DEGREE, STEP_OWN_DEGREE = 8, 2
+
+
+def step_dependence(obs: Observations, residuals: np.ndarray, degree: int = STEP_PATTERN_DEGREE,
+                    own: int = STEP_OWN_DEGREE) -> dict:
+    """Do the residuals of a periodic fit change from step to step beyond the noise?
+
+    A walk on a limit cycle repeats itself: the residuals of a periodic model, read at each
+    measured step's phase, are one pattern (the model's misfit, zero if it is right) plus noise,
+    the same every step of a foot. A walk off its cycle differs from step to step. For each
+    signal, model A fits each stance foot's residuals by one Legendre curve of the phase of
+    ``degree``; model B adds each step's own curve of degree ``own``. F test of B against A
+    (each signal's reduction in the sum of squares over its own residual variance under B,
+    pooled over the signals; white noise assumed): the misfit's pattern, however large, is in
+    both models and does not count.
+
+    Parameters
+    ----------
+    obs : Observations
+    residuals : ndarray, shape (n_obs,)
+        Measured minus model, read at each measured step's phase (a fit aligned on the measured
+        strikes).
+
+    Returns
+    -------
+    dict
+        ``F``, ``dfn``, ``dfd``, ``p`` (NaN when no signal has samples enough), and
+        ``by_signal`` (each signal's F).
+    """
+    stat, dfn, dfd, by_signal = 0.0, 0, 0, {}
+    ok = np.isfinite(residuals)
+    for s_i, name in enumerate(SIGNALS):
+        rss_a = rss_b = 0.0
+        k_a = k_b = n = 0
+        for foot in ("L", "R"):
+            sel = ok & (obs.signal == s_i) & (obs.stance[obs.step] == foot)
+            u = 2.0 * obs.phase[sel] - 1.0
+            a = np.polynomial.legendre.legvander(u, degree)
+            steps = obs.step[sel]
+            b = np.hstack([a] + [np.polynomial.legendre.legvander(u, own) * (steps == k)[:, None]
+                                 for k in np.unique(steps)])
+            if len(u) <= b.shape[1]:
+                continue
+            for design, acc in ((a, "a"), (b, "b")):
+                coef, _, rank, _ = np.linalg.lstsq(design, residuals[sel], rcond=None)
+                rss = float(np.sum((design @ coef - residuals[sel]) ** 2))
+                if acc == "a":
+                    rss_a, k_a = rss_a + rss, k_a + rank
+                else:
+                    rss_b, k_b = rss_b + rss, k_b + rank
+            n += len(u)
+        if n - k_b <= 0 or k_b <= k_a or rss_b <= 0:
+            continue
+        variance = rss_b / (n - k_b)
+        by_signal[name] = (rss_a - rss_b) / (k_b - k_a) / variance
+        stat += (rss_a - rss_b) / variance
+        dfn, dfd = dfn + k_b - k_a, dfd + n - k_b
+    if not dfn:
+        return {"F": math.nan, "dfn": 0, "dfd": 0, "p": math.nan, "by_signal": {}}
+    f_value = stat / dfn
+    return {"F": f_value, "dfn": dfn, "dfd": dfd, "p": float(stats.f.sf(f_value, dfn, dfd)),
+            "by_signal": by_signal}
 
 
 def _se(x: np.ndarray) -> float:

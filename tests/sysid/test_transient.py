@@ -91,6 +91,8 @@ def test_periodicity_test_rejects_a_released_walk_and_the_transient_fit_recovers
     test = periodicity_test(table, start, free)
     assert test.appropriate is False and test.p_value < 1e-6, test.message
     assert test.dof == 7 and test.chosen is test.transient
+    # and its periodic fit's residuals change from step to step (measured F = 1300)
+    assert test.step_dependence["p"] < 1e-6 and "from step to step" in test.message
     tr = test.transient
     assert tr.success and tr.model == "transient"
     for name in free:
@@ -113,6 +115,26 @@ def test_periodicity_test_rejects_a_released_walk_and_the_transient_fit_recovers
     # The periodic gait of the transient fit's walker is the truth's (stable, the same slowest
     # eigenvalue to 0.01).
     assert abs(tr.gait["max_abs_eigenvalue"] - find_gait(truth).max_abs_eigenvalue) < 0.01
+
+
+@pytest.mark.slow
+def test_a_walk_on_its_cycle_that_the_model_misfits_stays_periodic(toy):
+    """The stable toy with rolling resistance hidden (2e-4 N m s/rad, the library's typical
+    value), on its cycle, 12 steps, 0.002 rad noise, fitted by the base model (nothing free). A
+    free start bends the transient towards what the model cannot follow, so the likelihood ratio
+    alone rejects the periodic model (measured: 28.6 on 7 degrees of freedom, p = 1.7e-4; 185 on
+    two `toywalk simulate` walks of the same, both until now called off their cycle); but the
+    periodic fit's residuals repeat every step (step-to-step F measured 0.88, p = 0.81), so the
+    walk is kept periodic and the message says why. The released walk above is still rejected
+    (there F = 1300)."""
+    truth = toy.replace(**{"effects.rolling_resistance": 2e-4})
+    table, _ = _walk(truth, 12, 0.002, 5711)
+    test = periodicity_test(table, toy, [])
+    assert test.p_value < test.alpha, test.message  # the likelihood ratio alone would reject
+    assert test.step_dependence["p"] >= test.alpha and test.appropriate is True, test.message
+    assert test.chosen is test.periodic and test.chosen.model == "periodic"
+    assert "the model's misfit, not a walk off its cycle" in test.message
+    assert test.to_json()["step_dependence"]["F"] == test.step_dependence["F"]
 
 
 def test_periodicity_test_refuses_bad_requests(toy):
