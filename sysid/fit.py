@@ -1201,12 +1201,14 @@ def periodicity_test(table: TrajectoryTable, params: Params, free, *,
     if not appropriate:
         obs = observations(table)
         steps = step_dependence(obs, periodic.residuals[:len(obs.value)])
-        appropriate = not steps["p"] < alpha
+        appropriate = bool(steps["p"] >= alpha)  # untestable (NaN): the likelihood ratio decides
     chosen = periodic if appropriate else transient
     refit = fit(table, chosen.params, free, model=chosen.model, strikes=strikes, **final)
     repeated = "" if steps is None else (
         f"; its residuals change from step to step beyond the noise (F = {steps['F']:.3g} on "
-        f"{steps['dfn']} and {steps['dfd']} degrees of freedom, p = {steps['p']:.2g})")
+        f"{steps['dfn']} and {steps['dfd']} degrees of freedom, p = {steps['p']:.2g})"
+        if math.isfinite(steps["p"]) else "; too few samples a step to test whether its residuals "
+        "change from step to step")
     if appropriate and steps is None:
         periodic = refit
         message = (f"the walk is consistent with the model's limit cycle: a free start lowers "

@@ -39,7 +39,7 @@ from toywalk.model.trajectory import SIGNALS
 from .measurement import Observations
 
 __all__ = ["COMPONENTS", "FEATURES", "SCATTER_ORDER", "ResidualReport", "feature_misfit", "finite_mean",
-           "missed_features", "residual_report", "step_dependence", "scatter_noise", "step_features"]
+           "missed_features", "residual_report", "scatter_noise", "step_dependence", "step_features"]
 
 #: Per-step gait features (:func:`step_features`), with their unit.
 FEATURES = {"duration": "s", "lean_range": "rad", "steer_range": "rad", "steer_mean": "rad",
@@ -418,12 +418,12 @@ def step_dependence(obs: Observations, residuals: np.ndarray, degree: int = STEP
         if n - k_b <= 0 or k_b <= k_a or rss_b <= 0:
             continue
         variance = rss_b / (n - k_b)
-        by_signal[name] = (rss_a - rss_b) / (k_b - k_a) / variance
+        by_signal[name] = float((rss_a - rss_b) / (k_b - k_a) / variance)
         stat += (rss_a - rss_b) / variance
-        dfn, dfd = dfn + k_b - k_a, dfd + n - k_b
+        dfn, dfd = dfn + int(k_b - k_a), dfd + int(n - k_b)
     if not dfn:
         return {"F": math.nan, "dfn": 0, "dfd": 0, "p": math.nan, "by_signal": {}}
-    f_value = stat / dfn
+    f_value = float(stat / dfn)
     return {"F": f_value, "dfn": dfn, "dfd": dfd, "p": float(stats.f.sf(f_value, dfn, dfd)),
             "by_signal": by_signal}
 

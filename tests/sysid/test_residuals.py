@@ -191,3 +191,7 @@ def test_step_dependence_tells_a_walk_off_its_cycle_from_a_misfit():
     # common curve already has (15), over 4 signals and 2 feet; the rest of the 816 samples
     r = step_dependence(obs, misfit + noise)
     assert r["dfn"] == 4 * 2 * 15 and r["dfd"] == 816 - 4 * 2 * (9 + 15)
+    # too few samples a step for the curves: no test (NaN), which leaves the choice to the
+    # likelihood ratio (toywalk.sysid.fit.periodicity_test)
+    short = _obs(n_steps=2, per_step=5)
+    assert np.isnan(step_dependence(short, np.zeros(len(short.time)))["p"])
