@@ -350,8 +350,10 @@ def multi_start(table: TrajectoryTable, params: Params, free, *, starts=None,
                          key=lambda k: results[k].chi2)
     best = results[best_index]
     if check and best_index != 0 and best.success:
-        # The Jacobian cross-check of the best, from its own optimum (one more fit).
-        options = dict(fit_options, check_jacobian=True, noise_sd=noise_sd)
+        # The Jacobian cross-check of the best, from its own optimum (one more fit, continued
+        # from it: started afresh from its parameters alone, the fit has run to IPOPT's cap, as
+        # when another start wins by round-off at the same optimum)
+        options = dict(fit_options, check_jacobian=True, noise_sd=noise_sd, warm=best)
         best = dataclasses.replace(fit(table, best.params, free, **options),
                                    noise_source=noise_source)
     return MultiStart(best, runs, optima, agree, warnings, noise_sd or best.noise_sd,
