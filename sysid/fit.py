@@ -1204,9 +1204,10 @@ def periodicity_test(table: TrajectoryTable, params: Params, free, *,
         appropriate = bool(steps["p"] >= alpha)  # untestable (NaN): the likelihood ratio decides
     chosen = periodic if appropriate else transient
     refit = fit(table, chosen.params, free, model=chosen.model, strikes=strikes, **final)
+    shown = "" if steps is None else (f"F = {steps['F']:.3g} on {steps['dfn']} and {steps['dfd']} "
+                                      f"degrees of freedom, p = {steps['p']:.2g}")
     repeated = "" if steps is None else (
-        f"; its residuals change from step to step beyond the noise (F = {steps['F']:.3g} on "
-        f"{steps['dfn']} and {steps['dfd']} degrees of freedom, p = {steps['p']:.2g})"
+        f"; its residuals change from step to step beyond the noise ({shown})"
         if math.isfinite(steps["p"]) else "; too few samples a step to test whether its residuals "
         "change from step to step")
     if appropriate and steps is None:
@@ -1217,8 +1218,7 @@ def periodicity_test(table: TrajectoryTable, params: Params, free, *,
         periodic = refit
         message = (f"the walk repeats itself: a free start lowers chi-square by {delta:.4g} on {dof} "
                    f"degrees of freedom (p = {p_value:.2g}), but the periodic fit's residuals are the "
-                   f"same every step (F = {steps['F']:.3g} on {steps['dfn']} and {steps['dfd']} degrees "
-                   f"of freedom, p = {steps['p']:.2g}): the model's misfit, not a walk off its cycle")
+                   f"same every step ({shown}): the model's misfit, not a walk off its cycle")
     else:
         transient = refit
         message = (f"the walk is not on the model's limit cycle: a free start lowers chi-square by "

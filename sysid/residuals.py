@@ -407,13 +407,8 @@ def step_dependence(obs: Observations, residuals: np.ndarray, degree: int = STEP
                                  for k in np.unique(steps)])
             if len(u) <= b.shape[1]:
                 continue
-            for design, acc in ((a, "a"), (b, "b")):
-                coef, _, rank, _ = np.linalg.lstsq(design, residuals[sel], rcond=None)
-                rss = float(np.sum((design @ coef - residuals[sel]) ** 2))
-                if acc == "a":
-                    rss_a, k_a = rss_a + rss, k_a + rank
-                else:
-                    rss_b, k_b = rss_b + rss, k_b + rank
+            (rss, rank), (rss_own, rank_own) = (_least_squares(d, residuals[sel]) for d in (a, b))
+            rss_a, k_a, rss_b, k_b = rss_a + rss, k_a + rank, rss_b + rss_own, k_b + rank_own
             n += len(u)
         if n - k_b <= 0 or k_b <= k_a or rss_b <= 0:
             continue
@@ -426,6 +421,13 @@ def step_dependence(obs: Observations, residuals: np.ndarray, degree: int = STEP
     f_value = float(stat / dfn)
     return {"F": f_value, "dfn": dfn, "dfd": dfd, "p": float(stats.f.sf(f_value, dfn, dfd)),
             "by_signal": by_signal}
+
+
+def _least_squares(design: np.ndarray, y: np.ndarray) -> tuple[float, int]:
+    """The residual sum of squares of ``y`` (n,) on the columns of ``design`` (n, k), and the
+    design's rank."""
+    coef, _, rank, _ = np.linalg.lstsq(design, y, rcond=None)
+    return float(np.sum((design @ coef - y) ** 2)), int(rank)
 
 
 def _se(x: np.ndarray) -> float:

@@ -190,7 +190,7 @@ def test_fit_command_multistart(tmp_path):
 @pytest.mark.slow
 def test_another_start_winning_is_checked_from_its_own_optimum(toy, tmp_path, monkeypatch):
     """When a start other than the user's is best (at one optimum that is round-off: the fit
-    command's test below once saw the toy-sized start win, on its walk), the best fit is fitted
+    command's test above once saw the toy-sized start win, on its walk), the best fit is fitted
     once more for its Jacobian check, continued from its own optimum. Started afresh from its
     parameters alone, that fit ran to IPOPT's 500-iteration cap. Here the toy-sized start is made
     the winner on that walk."""
