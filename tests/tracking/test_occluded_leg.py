@@ -117,7 +117,9 @@ def _check(result, truth, seen, hidden, camera, walker: str) -> dict:
     # with an SD of 1.0; its neighbours, across the strike, cannot correct it (after the smoother
     # -1.7 at an SD of 0.59): left pitch 0.42 degree RMS, 0.23 without that frame (0.62 from each
     # frame's own fit). Neither the true strike times in the smoother (0.416) nor strike timing
-    # weighted by the frames' SDs (the blurred frames at the strikes weigh least) help
+    # weighted by the frames' SDs (the blurred frames at the strikes weigh least) help. The
+    # cause: that smeared flag's corners, 1.2 px off after one edge-line refinement, 0.6 after
+    # three; three give 0.185 here but bias lean and steer elsewhere (benchmarks/TRACKING.md)
     pytest.param("stable-toy", 13, 2, 1.0, marks=pytest.mark.xfail(
         reason="issue 14 open: a blurred frame at a strike, 2.7 degrees off, gives pitch 0.42 deg RMS")),
 ])
