@@ -212,6 +212,37 @@ def _timed_pass(video: Path, threads: dict, camera=None, layout=None) -> dict:
             "process": process}
 
 
+def _opencv_floor(video: Path, camera, layout) -> dict:
+    """A one-thread tracking pass under :mod:`cProfile`: the time spent inside OpenCV's own calls
+    (their exclusive time), reading frames apart, and within it ArUco's ``detectMarkers`` (ms/frame).
+    What the tracker's Python and NumPy cost is the rest; compiled glue could remove that, not this."""
+    import cProfile
+    import pstats
+
+    from toywalk.tracking.track import track_frames
+    from toywalk.tracking.video import open_video
+
+    functions = {f"<{name}>" for name in dir(cv2) if callable(getattr(cv2, name, None))}
+    cv2.setNumThreads(1)
+    profile = cProfile.Profile()
+    profile.enable()
+    result = track_frames(open_video(video, decoder_threads=1), camera, layout)
+    profile.disable()
+    cv2.setNumThreads(_DEFAULT_CV_THREADS)
+    opencv = read = detect = 0.0
+    for (path, _, name), (_, _, own, _, _) in pstats.Stats(profile).stats.items():
+        if path != "~" or not (name in functions or "of 'cv2." in name):
+            continue
+        if "'cv2.VideoCapture'" in name:
+            read += own
+        else:
+            opencv += own
+            detect += own if "'detectMarkers'" in name else 0.0
+    n = len(result.time)
+    return {"opencv_ms_per_frame": 1e3 * opencv / n, "detect_markers_ms_per_frame": 1e3 * detect / n,
+            "read_ms_per_frame_profiled": 1e3 * read / n}
+
+
 def _throughput(videos: list[Path], repeats: int = 3) -> dict:
     """Decode-only and tracking passes over each video, one thread and default threads, the four
     passes alternated (decode, track; one thread, then default); best of ``repeats`` each."""
@@ -223,7 +254,11 @@ def _throughput(videos: list[Path], repeats: int = 3) -> dict:
                      f"{repeats} each; ratio = tracking throughput / decode-only throughput (decode "
                      "time / tracking time; tracking includes its decoding). Times in ms/frame "
                      "(wall). cpu_per_wall: process CPU time over wall time of the best pass; "
-                     "threads_ran: threads that used CPU time during it (at least 10 ms)",
+                     "threads_ran: threads that used CPU time during it (at least 10 ms). One "
+                     "thread also: opencv_ms_per_frame, the exclusive time inside OpenCV's calls "
+                     "(reading frames apart) in one more tracking pass under cProfile, of which "
+                     "detect_markers_ms_per_frame is ArUco's search; ceiling_ratio = decode / "
+                     "(decode + opencv): the ratio with all Python and NumPy compiled away",
            "threads": THREADS, "opencv_default_threads": _DEFAULT_CV_THREADS,
            "cores": os.cpu_count(), "load_average_start": os.getloadavg(), "videos": {}}
     for video in videos:
@@ -253,14 +288,21 @@ def _throughput(videos: list[Path], repeats: int = 3) -> dict:
                 "track_finish_ms_per_frame": 1e3 * (trk["wall"] - trk["read"] - trk["process"]) / n,
                 "decode_ms_per_frame_all": [1e3 * r["wall"] / n for r in runs["decode", label]],
                 "track_ms_per_frame_all": [1e3 * r["wall"] / n for r in runs["track", label]]}
+        # the ceiling of the design: decoding plus OpenCV's own calls, all else compiled away
+        floor = _opencv_floor(video, camera, layout)
+        one = row["one thread"]
+        floor["ceiling_ratio"] = one["decode_ms_per_frame"] / (one["decode_ms_per_frame"] +
+                                                               floor["opencv_ms_per_frame"])
+        one.update(floor)
         out["videos"][video.stem] = row
         one, dflt = row["one thread"], row["default threads"]
         print(f"throughput {video.stem:28s} one thread: decode {one['decode_ms_per_frame']:.2f} track "
               f"{one['track_ms_per_frame']:.2f} ms/frame ratio {one['ratio']:.2f} (threads ran "
               f"{one['decode_threads_ran']}/{one['track_threads_ran']}) | default: decode "
               f"{dflt['decode_ms_per_frame']:.2f} track {dflt['track_ms_per_frame']:.2f} ratio "
-              f"{dflt['ratio']:.2f} (threads ran {dflt['decode_threads_ran']}/{dflt['track_threads_ran']})",
-              flush=True)
+              f"{dflt['ratio']:.2f} (threads ran {dflt['decode_threads_ran']}/{dflt['track_threads_ran']}) | "
+              f"OpenCV's own calls {one['opencv_ms_per_frame']:.2f} ms/frame (detectMarkers "
+              f"{one['detect_markers_ms_per_frame']:.2f}), ceiling {one['ceiling_ratio']:.2f}", flush=True)
     cv2.setNumThreads(_DEFAULT_CV_THREADS)
     out["load_average_end"] = os.getloadavg()
     return out
