@@ -251,6 +251,49 @@ def _refine(gray, corners: np.ndarray, camera, samples: int, iterations: int, *,
     return c, ok
 
 
+#: px: ArUco's corners lie on its outline polygon, a median 0.9 px from the edge-line corners on
+#: every shipped walker's clips (90th percentile 1.0-1.9 px per flag). A first refinement step a
+#: third beyond that median marks an outline displaced by smear, refined again
+#: (:func:`_refine_smeared`). Measured on test_occluded_leg.py's stable-toy clip (left pitch, degree
+#: RMS): 0.19 at 1.0 or 1.2 px, 0.28 at 1.5, 0.31 at 1.8, 0.42 without.
+_SMEARED_STEP = 1.2
+
+
+def _refine_smeared(gray, rough: np.ndarray, refined: np.ndarray, camera, *, more: int = 2) -> np.ndarray:
+    """Refine again, up to ``more`` times, the quads (m, 4, 2) whose first edge-line step from
+    ArUco's ``rough`` corners to ``refined`` exceeds :data:`_SMEARED_STEP`.
+
+    When the smear is about as wide as the fine band, the band's end thirds (its dark and light
+    levels) take in the edge's own slope on the side it lies, so one step falls short: a smeared
+    flag's corners 3.1 px off, steps 1.9, 0.67, 0.24 px, then 0.6 px off (stable-toy,
+    test_occluded_leg.py); a 5-px box smear 2-3 px off, 0.49-0.89 px after one step and
+    0.07-0.13 after this (test_detect_smear.py). A step is kept only if it is at most half the
+    one before: one that does not shrink is an edge of something covering the flag taking the
+    quad (3.4, then 2.9 px). A 7-px smear converges too slowly for that rule and keeps about 1 px.
+
+    Quads with an ordinary first step are refined once. Refining every quad to convergence gives
+    better corners (the 16-step walk of test_ramp_pose.py: leg-flag corner RMS 0.065-0.132 ->
+    0.049-0.111 px) but lowers the hip width estimated from the frames (34.62-34.67 -> 34.54-34.59
+    mm, true 34.67; the fastest frames most), which turns lean and steer (steer mean -0.036 to
+    -0.070 degree); with the true width given, they are within 0.015 degree of zero either way
+    (benchmarks/TRACKING.md).
+    """
+    out = np.array(refined, float)
+    step = np.max(np.linalg.norm(out - rough, axis=2), axis=1)
+    active = np.flatnonzero(np.isfinite(step) & (step > _SMEARED_STEP))
+    for _ in range(more):
+        if not len(active):
+            break
+        images = [gray[i] for i in active] if isinstance(gray, (list, tuple)) else gray
+        again = refine_corners(images, out[active], camera)
+        moved = np.max(np.linalg.norm(again - out[active], axis=2), axis=1)
+        shrinks = np.isfinite(moved) & (moved <= 0.5 * step[active])
+        out[active[shrinks]] = again[shrinks]
+        step[active] = moved
+        active = active[shrinks]
+    return out
+
+
 def _cell_means(gray, corners: np.ndarray, cells: int, per_cell: int = 3) -> np.ndarray:
     """Mean grey level of the central half of each cell of a marker's grid, shape (cells, cells).
 
@@ -437,7 +480,8 @@ class MarkerDetector:
         if not ids:
             return found
         # all markers of all regions refined at once; the lens model needs full-frame pixels
-        refined = refine_corners(images, np.array(rough), self.camera)
+        rough = np.array(rough)
+        refined = _refine_smeared(images, rough, refine_corners(images, rough, self.camera), self.camera)
         # An edge the refinement could not fit (too short, cut by the crop) gives NaN: keep the
         # detector's own corners rather than a broken marker.
         finite = np.all(np.isfinite(refined), axis=(1, 2))
