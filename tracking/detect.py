@@ -290,7 +290,8 @@ def _refine_smeared(gray, rough: np.ndarray, refined: np.ndarray, camera, *, mor
         shrinks = np.isfinite(moved) & (moved <= 0.5 * step[active])
         out[active[shrinks]] = again[shrinks]
         step[active] = moved
-        active = active[shrinks]
+        # a quad that did not move (its edges not measurable) would only come back unchanged
+        active = active[shrinks & (moved > 0)]
     return out
 
 
