@@ -27,13 +27,14 @@ from functools import cache
 import casadi as ca
 import numpy as np
 
+from .compiled import compile_with_derivatives
 from .equations import build_functions, layout
 from .gait import Stability
 from .parameters import N_INPUT, Params, view
 from .walker import Walker
 
 __all__ = ["BVP", "CollocationGait", "bvp", "contact_travel", "cycle_jacobian", "initial_guess",
-           "solve_collocation", "step_displacements"]
+           "interval_equations", "native_interval", "solve_collocation", "step_displacements"]
 
 
 @dataclasses.dataclass
@@ -163,6 +164,46 @@ def _phase_input(p: ca.MX, phase: int) -> ca.MX:
     return p if phase % 2 == 0 else ca.vertcat(p[:-1], -p[-1])
 
 
+def interval_equations(planar: bool, degree: int) -> ca.Function:
+    """One mesh interval's collocation and continuity equations, an SX function
+    ``interval(x_k[nd], x_c[nd * degree], x_next[nd], h, p[N_INPUT]) -> (nd * (degree + 1),)``:
+    the collocation residuals ``Z C - h f(x_c)`` (Legendre points, ``Z = [x_k, x_c]``) and the
+    continuity ``Z D - x_next``.
+
+    The gait's BVP maps it over the mesh: its derivatives (IPOPT's constraint Jacobian and
+    Lagrangian Hessian) are then mapped functions of one interval, several times faster to
+    evaluate than the same equations written interval by interval in the MX graph (measured on
+    a 12-step transient fit: 3 s to 0.45 s per Hessian in CasADi's virtual machine), without
+    expanding the whole graph to SX (minutes to build).
+    """
+    lay = layout(planar)
+    nd = lay.n_dyn
+    base = build_functions(planar)
+    ps = ca.SX.sym("p", N_INPUT)
+    xk_s, xn_s = ca.SX.sym("xk", nd), ca.SX.sym("xn", nd)
+    xc_s, h_s = ca.SX.sym("xc", nd * degree), ca.SX.sym("h")
+    xc_m = ca.reshape(xc_s, nd, degree)
+    pad = ca.SX.zeros(lay.nx - nd)
+    f_c = ca.horzcat(*[base["rhs"](ca.vertcat(xc_m[:, j], pad), ps)[:nd] for j in range(degree)])
+    tau = list(ca.collocation_points(degree, "legendre"))
+    c_mat, d_vec, _ = (np.array(m) for m in ca.collocation_coeff(tau))
+    z_s = ca.horzcat(xk_s, xc_m)
+    return ca.Function("interval", [xk_s, xc_s, xn_s, h_s, ps], [ca.vertcat(
+        ca.vec(ca.mtimes(z_s, c_mat) - h_s * f_c), ca.mtimes(z_s, d_vec) - xn_s)])
+
+
+@cache
+def native_interval(planar: bool, degree: int) -> ca.Function:
+    """:func:`interval_equations` compiled with its first and second derivatives
+    (:func:`toywalk.model.compiled.compile_with_derivatives`; once per machine, cached on disk):
+    one library serves every mesh size, stride length, parameter set and effect. A fit's IPOPT
+    iteration then costs several times less than in CasADi's virtual machine (measured on a
+    three-walk, 12-step joint fit of stable-toy with hip dry friction: Lagrangian Hessian 430 ->
+    51 ms, constraint Jacobian 250 -> 21 ms an evaluation; the same estimates to 10 digits).
+    The symbolic function itself without a compiler (``TOYWALK_JIT=0``)."""
+    return compile_with_derivatives(interval_equations(planar, degree))
+
+
 @cache
 def bvp(planar: bool, n_intervals: int = 30, degree: int = 4, phases: int = 1,
         periodic: bool = True) -> BVP:
@@ -179,31 +220,17 @@ def bvp(planar: bool, n_intervals: int = 30, degree: int = 4, phases: int = 1,
     xs = ca.SX.sym("x", nd)
     ps = ca.SX.sym("p", N_INPUT)
     full = ca.vertcat(xs, ca.SX.zeros(pad))
-    f_dyn = ca.Function("f_dyn", [xs, ps], [base["rhs"](full, ps)[:nd]])
     g_end = ca.Function("g_end", [xs, ps], [base["guard"](full, ps)])
     rdot = ca.Function("hdot", [xs, ps], [ca.mtimes(ca.jacobian(base["guard"](full, ps)[0], xs),
                                                      base["rhs"](full, ps)[:nd])])
     coll = ca.Function("coll", [xs, ps], [base["collision"](full, ps)[:nd]])
 
     tau = np.array(ca.collocation_points(degree, "legendre"))
-    c_mat, d_vec, _ = (np.array(m) for m in ca.collocation_coeff(list(tau)))
     size = 1 + nd + n_intervals * nd * (degree + 1)
     w = ca.MX.sym("w", size * phases)
     p = ca.MX.sym("p", N_INPUT)
     par = view(p)
-    # One mesh interval's collocation and continuity equations as one SX function, mapped over
-    # the mesh: its derivatives (IPOPT's constraint Jacobian and Lagrangian Hessian) are then
-    # mapped SX functions too, several times faster to evaluate than the same equations written
-    # interval by interval in the MX graph (measured on a 12-step transient fit: 3 s to 0.45 s
-    # per Hessian), without expanding the whole graph to SX (minutes to build).
-    xk_s, xn_s = ca.SX.sym("xk", nd), ca.SX.sym("xn", nd)
-    xc_s, h_s = ca.SX.sym("xc", nd * degree), ca.SX.sym("h")
-    xc_m = ca.reshape(xc_s, nd, degree)
-    z_s = ca.horzcat(xk_s, xc_m)
-    f_c = ca.horzcat(*[f_dyn(xc_m[:, j], ps) for j in range(degree)])
-    interval = ca.Function("interval", [xk_s, xc_s, xn_s, h_s, ps], [ca.vertcat(
-        ca.vec(ca.mtimes(z_s, c_mat) - h_s * f_c), ca.mtimes(z_s, d_vec) - xn_s)])
-    mesh = interval.map(n_intervals)
+    mesh = native_interval(planar, degree).map(n_intervals)
     eqs, lb, ub = [], [], []
     starts, ends, guards = [], [], []
     # Per step: collocation and continuity on its own [0, T_k], then its guard h(x_N) = 0.

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import casadi as ca
 
-__all__ = ["cache_dir", "compile_functions"]
+__all__ = ["cache_dir", "compile_functions", "compile_with_derivatives"]
 
 # -O1, not -O2: gcc 12 compiles the 3D walker's library in 43 s against 75 s (planar 9 s against
 # 17 s), and its functions run as fast (a step 35.8 against 36.1 us, the final state's Jacobian
@@ -64,12 +64,50 @@ def compile_functions(
     dict of str to casadi.Function
         Compiled functions, or the originals when no compiler is available.
     """
+    lib = _library(name, list(functions.values()), verbose)
+    if lib is None:
+        return dict(functions)
+    return {key_: ca.external(fn.name(), str(lib)) for key_, fn in functions.items()}
+
+
+def compile_with_derivatives(fn: ca.Function, verbose: bool = True) -> ca.Function:
+    """A native ``fn`` that brings its own first and second derivatives, for use inside an NLP.
+
+    CasADi differentiates an external function only through functions that its library holds
+    under derivative names: ``fwd1_NAME`` and ``adj1_NAME`` (an NLP's constraint Jacobian, by
+    forward directions, and its gradients) and ``fwd1_adj1_NAME`` (forward over reverse: the
+    Lagrangian's Hessian). Those are generated from ``fn`` here, each with its Jacobian's
+    sparsity, so that the NLP's derivative sparsity stays that of the symbolic function (without
+    it every mapped call's Hessian block is taken as dense). A ``jac_NAME`` is left out: CasADi
+    3.8 cannot load one generated with its sparsity, and the forward derivatives serve.
+    Compiled and cached like :func:`compile_functions`; the original ``fn`` when no compiler is
+    available. Second derivatives only: a third (the Hessian's Jacobian) is an error.
+
+    Parameters
+    ----------
+    fn : casadi.Function
+        An SX function (its derivatives are generated symbolically).
+    verbose : bool
+        Print one line to stderr when a compile is paid.
+    """
+    adj = fn.reverse(1)
+    derived = [fn, fn.forward(1), adj, adj.forward(1)]
+    lib = _library(f"{fn.name()}_ad", derived, verbose, with_sparsity=True)
+    if lib is None:
+        return fn
+    return ca.external(fn.name(), str(lib), {"enable_fd": False})
+
+
+def _library(name: str, functions: list[ca.Function], verbose: bool,
+             with_sparsity: bool = False) -> Path | None:
+    """Path of the cached shared library of ``functions`` (compiled now if missing), or None
+    when there is no compiler or the compile fails."""
     cc = _compiler()
     if cc is None:
-        return dict(functions)
+        return None
     gen = ca.CodeGenerator(f"{name}.c", {"with_header": False, "casadi_real": "double"})
-    for fn in functions.values():
-        gen.add(fn)
+    for fn in functions:
+        gen.add(fn, with_sparsity)
     source = gen.dump()
     key = hashlib.sha256((source + " ".join((cc, *_CFLAGS))).encode()).hexdigest()[:20]
     folder = cache_dir()
@@ -96,6 +134,6 @@ def compile_functions(
                     f"{detail.strip().splitlines()[-1] if detail.strip() else err}",
                     file=sys.stderr,
                 )
-                return dict(functions)
+                return None
             os.replace(out, lib)
-    return {key_: ca.external(fn.name(), str(lib)) for key_, fn in functions.items()}
+    return lib

@@ -70,3 +70,56 @@ def test_compiled_walker_matches_virtual_machine(planar):
     fast = eng.k["rhs"](x, params.input_vector())[0].ravel()
     slow = np.array(build_functions(planar)["rhs"](x, params.input_vector())).ravel()
     np.testing.assert_allclose(fast, slow, rtol=1e-13, atol=1e-13)
+
+
+@pytest.mark.parametrize("planar", [True, False])
+def test_native_interval_derivatives_match_the_symbolic_ones(planar):
+    """The collocation interval compiled with its derivatives (model.collocation.native_interval)
+    gives an NLP the same constraint Jacobian and Lagrangian Hessian as the SX function in the
+    virtual machine, with the same sparsity (its derivative functions carry theirs), and its
+    Jacobian agrees with central differences."""
+    from toywalk.model.collocation import interval_equations, native_interval
+    from toywalk.model.parameters import load_params
+
+    from ..conftest import DATA
+
+    degree, n_int = 4, 3
+    symbolic, native = interval_equations(planar, degree), native_interval(planar, degree)
+    if native is symbolic:
+        pytest.skip("no C compiler: the virtual machine serves (tested above)")
+    nd = symbolic.size1_in(0)
+    rng = np.random.default_rng(3)
+    params = load_params(DATA / "params" / ("compass-3d.toml" if not planar else "stable-toy.toml"))
+    p_val = params.input_vector(1)
+    x = ca.MX.sym("x", nd * (degree + 2) * n_int + n_int)
+    parts = ca.vertsplit(x, list(np.cumsum([0, nd * n_int, nd * degree * n_int, nd * n_int, n_int])))
+    args = [ca.reshape(parts[0], nd, n_int), ca.reshape(parts[1], nd * degree, n_int),
+            ca.reshape(parts[2], nd, n_int), ca.reshape(parts[3], 1, n_int)]
+    p = ca.MX.sym("p", len(p_val))
+    x_val = np.r_[0.1 * rng.standard_normal(len(x.nz) - n_int), np.full(n_int, 0.05)]
+    lam = rng.standard_normal(nd * (degree + 1) * n_int)
+    out = {}
+    for name, fn in (("symbolic", symbolic), ("native", native)):
+        g = ca.vec(fn.map(n_int)(*args, ca.repmat(p, 1, n_int)))
+        nlp = ca.nlpsol(f"check_{name}", "ipopt", {"x": x, "p": p, "f": 0, "g": g},
+                        {"ipopt.print_level": 0, "print_time": False})
+        jac = nlp.get_function("nlp_jac_g")(x_val, p_val)[1]
+        hess = nlp.get_function("nlp_hess_l")(x_val, p_val, 0.0, lam)
+        out[name] = (jac, hess)
+    for k in range(2):
+        a, b = out["symbolic"][k], out["native"][k]
+        assert a.sparsity() == b.sparsity(), ("Jacobian", "Hessian")[k]
+        # the same expressions evaluated by compiled C and by the virtual machine: round-off only
+        np.testing.assert_allclose(np.array(b.nonzeros()), np.array(a.nonzeros()), rtol=1e-9, atol=1e-9)
+    # central differences of one interval, step 1e-6: truncation error ~ 1e-12 x third derivative
+    z = [x_val[:nd], x_val[nd:nd * (degree + 1)], x_val[nd * (degree + 1):nd * (degree + 2)], 0.05, p_val]
+    jac_native = np.hstack([np.array(b) for b in native.jacobian()(*z, native(*z))[:4]])
+    flat = np.r_[z[0], z[1], z[2], z[3]]
+    sizes = np.cumsum([0, nd, nd * degree, nd])
+
+    def at(v):
+        pieces = (v[:sizes[1]], v[sizes[1]:sizes[2]], v[sizes[2]:sizes[3]], v[-1])
+        return np.array(native(*pieces, p_val)).ravel()
+
+    fd = np.column_stack([(at(flat + 1e-6 * e) - at(flat - 1e-6 * e)) / 2e-6 for e in np.eye(len(flat))])
+    np.testing.assert_allclose(jac_native, fd, rtol=1e-6, atol=1e-6)
