@@ -10,9 +10,10 @@ stance, the description is mirrored y -> -y).
 
 from __future__ import annotations
 
-import casadi as ca
-
 from .base import Effect
+
+# CasADi is imported where an expression is built, so that reading parameter files (the tracker
+# does) does not load it (effects/base.py).
 
 __all__ = ["Asymmetry", "CrossSlope"]
 
@@ -33,6 +34,8 @@ class Asymmetry(Effect):
                "the walker turns")
 
     def com_offsets(self, k, ctx, d_st, d_sw):
+        import casadi as ca
+
         half = 0.5 * k * ctx.side
         return (ca.vertcat(d_st[0], d_st[1] * (1 + half), d_st[2]),
                 ca.vertcat(d_sw[0], d_sw[1] * (1 - half), d_sw[2]))
@@ -52,6 +55,8 @@ class CrossSlope(Effect):
     physics = "the ramp tilted sideways by beta (left edge up for beta > 0): the walker drifts"
 
     def gravity(self, k, ctx, gvec):
+        import casadi as ca
+
         alpha, g = ctx.params.slope, ctx.params.gravity
         return g * ca.vertcat(ca.sin(alpha), -ctx.side * ca.cos(alpha) * ca.sin(k),
                               -ca.cos(alpha) * ca.cos(k))

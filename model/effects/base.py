@@ -15,16 +15,19 @@ neutral default, so an effect overrides only the hooks it needs:
 - :meth:`Effect.trailing_impulse` and :meth:`Effect.arrest` change the collision law.
 
 Every strength is a symbolic input of the compiled functions (``k`` below is a CasADi SX scalar):
-one compiled function set serves every value and every combination.
+one compiled function set serves every value and every combination. CasADi is imported only where
+an expression is built: the parameter files name the effects, and reading them (the tracker does,
+``toywalk track``) does not load CasADi (about 1 s).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import casadi as ca
+if TYPE_CHECKING:
+    import casadi as ca
 
 __all__ = ["Arrest", "Context", "Effect"]
 
@@ -62,11 +65,15 @@ class Context:
     @property
     def ez(self) -> ca.SX:
         """The ramp normal."""
+        import casadi as ca
+
         return ca.SX([0.0, 0.0, 1.0])
 
     @property
     def rate_unit(self) -> ca.SX:
         """sqrt(g / l) (rad/s), the natural rate of a pendulum of the leg's length."""
+        import casadi as ca
+
         return ca.sqrt(self.params.gravity / self.params.leg_length)
 
 

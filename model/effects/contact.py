@@ -8,9 +8,10 @@ Both couples act on the stance leg; the ramp, at rest, takes the reaction, so ea
 
 from __future__ import annotations
 
-import casadi as ca
-
 from .base import Effect
+
+# CasADi is imported where an expression is built, so that reading parameter files (the tracker
+# does) does not load it (effects/base.py).
 
 __all__ = ["PivotFriction", "RollingResistance"]
 
@@ -28,6 +29,8 @@ class RollingResistance(Effect):
     physics = "viscous couple opposing the stance foot's rolling (tangential angular velocity)"
 
     def couples(self, k, ctx):
+        import casadi as ca
+
         ez = ctx.ez
         tangential = ctx.w1 - ca.dot(ctx.w1, ez) * ez
         return [(1, -k * tangential)]
@@ -46,5 +49,7 @@ class PivotFriction(Effect):
     physics = "viscous couple about the ramp normal opposing the stance foot's spin"
 
     def couples(self, k, ctx):
+        import casadi as ca
+
         ez = ctx.ez
         return [(1, -k * ca.dot(ctx.w1, ez) * ez)]

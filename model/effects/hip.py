@@ -7,9 +7,12 @@ rigid motion of the pair and dissipates ``-tau * (theta_sw' - theta_st')`` (mode
 
 from __future__ import annotations
 
-import casadi as ca
+from typing import TYPE_CHECKING
 
 from .base import Context, Effect
+
+if TYPE_CHECKING:
+    import casadi as ca
 
 __all__ = ["COULOMB_SMOOTHING", "HipCoulomb", "HipDamping", "coulomb_torque"]
 

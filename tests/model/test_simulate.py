@@ -91,3 +91,17 @@ def test_reading_a_trajectory_does_not_load_casadi():
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert run.returncode == 0, run.stderr
     assert run.stdout.strip() == "False"
+
+
+def test_the_tracker_and_a_parameter_file_do_not_load_casadi():
+    """``toywalk track`` and ``render`` read parameter files, whose effects table names the effect
+    library: CasADi is imported only where an effect builds an expression (model/effects), so the
+    tracker does not pay its import. The same check failed while the effects imported it at the
+    top (toywalk.model.parameters -> toywalk.model.effects)."""
+    code = ("import sys; import toywalk.tracking.track, toywalk.tracking.render; "
+            "from toywalk.model.parameters import load_params; "
+            f"p = load_params({str(DATA / 'params' / 'stable-toy.toml')!r}); "
+            "assert p.leg_length > 0; print('casadi' in sys.modules)")
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.strip() == "False"
