@@ -19,11 +19,14 @@ swing foot passes the stance foot (terminal event ``ahead``, rising), then on un
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from scipy.integrate import solve_ivp
+from toywalk.model.parameters import Params
 from toywalk.model.walker import Walker
 
-__all__ = ["ScipyStepMap"]
+__all__ = ["ScipyStepMap", "planar_constants", "planar_rhs"]
 
 #: Integration tolerances of the baseline (relative and absolute).
 RTOL = 1e-12
@@ -39,10 +42,13 @@ class ScipyStepMap:
     ----------
     walker : Walker
         Supplies the state layout, the guard and the collision (and the compiled kernels).
-    rhs : {"vm", "compiled"}
+    rhs : {"vm", "compiled", "numpy"}
         ``"vm"``: the uncompiled CasADi ``rhs`` Function (``build_functions(planar)["rhs"]``) called
         with NumPy arrays, i.e. what a user who wrote the equations in Python would have.
         ``"compiled"``: the toolkit's compiled kernel (fair comparison of the methods alone).
+        ``"numpy"`` (planar walkers only): :func:`planar_rhs`, equations written by hand in plain
+        Python floats, as cheap a right-hand side as a Python user could write; the guard is
+        the toolkit's compiled one.
     """
 
     def __init__(self, walker: Walker, rhs: str = "vm"):
@@ -71,8 +77,20 @@ class ScipyStepMap:
             def guard(x):
                 g = k_guard(x, p_np)[0].ravel()
                 return float(g[0]), float(g[1])
+        elif rhs == "numpy":
+            if not walker.planar:
+                raise ValueError("rhs='numpy' is written for the planar walker only")
+            k_guard = walker.eng.k["guard"]
+            p_np, consts = self.p, planar_constants(walker.params)
+
+            def f(t, x):
+                return planar_rhs(x, consts)
+
+            def guard(x):
+                g = k_guard(x, p_np)[0].ravel()
+                return float(g[0]), float(g[1])
         else:
-            raise ValueError(f"rhs must be 'vm' or 'compiled', got {rhs!r}")
+            raise ValueError(f"rhs must be 'vm', 'compiled' or 'numpy', got {rhs!r}")
         self._f = f
 
         def passed(t, x):
@@ -119,3 +137,49 @@ class ScipyStepMap:
             e[i] = h
             jac[:, i] = (self.step(z0 + e)[0] - self.step(z0 - e)[0]) / (2.0 * h)
         return z_plus, jac, t
+
+
+def planar_constants(params: Params) -> tuple:
+    """The constants of :func:`planar_rhs`: (l, r, m, M_h, d_x, d_z, I_yy, g, slope)."""
+    return (params.leg_length, params.foot_radius, params.leg_mass, params.axle_mass,
+            params.com_offset[0], params.com_offset[2], params.inertia[1], params.gravity,
+            params.slope)
+
+
+def planar_rhs(x: np.ndarray, c: tuple) -> np.ndarray:
+    """The planar walker's state derivative, written by hand: Lagrange's equations of two legs
+    on a round (or point) foot rolling on the ramp, a point mass at the hip, the 2x2 mass matrix
+    inverted by Cramer's rule.
+
+    The formulas are those of the project's independent test oracle
+    (``tests/model/roundfoot_reference.py``: ``mass_matrix`` and ``accelerations``, derived
+    there), in plain floats: what a Python user writing the walker's equations for SciPy would
+    have. ``run_all.py`` checks it against the toolkit's compiled right-hand side.
+
+    Parameters
+    ----------
+    x : ndarray, shape (5,)
+        Stance and swing pitch (rad), their rates (rad/s), the contact's travel along the ramp (m).
+    c : tuple
+        :func:`planar_constants`.
+    """
+    l, r, m, m_h, dx, dz, inertia, g, alpha = c
+    th1, th2, w1, w2 = float(x[0]), float(x[1]), float(x[2]), float(x[3])
+    s, a, mt = l - r, l - r + dz, m_h + 2.0 * m
+    c1, s1, c2, s2 = math.cos(th1), math.sin(th1), math.cos(th2), math.sin(th2)
+    c12, s12 = math.cos(th1 - th2), math.sin(th1 - th2)
+    ca, sa = math.cos(alpha), math.sin(alpha)
+    m11 = ((m_h + m) * (r * r + s * s + 2.0 * r * s * c1)
+           + m * (r * r + a * a + dx * dx + 2.0 * r * a * c1 - 2.0 * r * dx * s1) + inertia)
+    m12 = m * (r * (dz * c2 - dx * s2) + s * (dz * c12 + dx * s12))
+    m22 = m * (dx * dx + dz * dz) + inertia
+    dm11 = -2.0 * r * ((m_h + m) * s * s1 + m * (a * s1 + dx * c1))
+    p1 = m * s * (dx * c12 - dz * s12)
+    p2 = m * (-r * (dz * s2 + dx * c2) + s * (dz * s12 - dx * c12))
+    dv1 = (g * ca * (-mt * s * s1 - m * (dx * c1 + dz * s1))
+           - g * sa * (mt * (r + s * c1) + m * (dz * c1 - dx * s1)))
+    dv2 = -g * ca * m * (dx * c2 + dz * s2) - g * sa * m * (dz * c2 - dx * s2)
+    f1 = -(0.5 * dm11 * w1 * w1 + p2 * w2 * w2 + dv1)
+    f2 = -(p1 * w1 * w1 + dv2)
+    det = m11 * m22 - m12 * m12
+    return np.array([w1, w2, (m22 * f1 - m12 * f2) / det, (m11 * f2 - m12 * f1) / det, r * w1])

@@ -32,7 +32,7 @@ from toywalk.model.parameters import Params, load_params
 from toywalk.model.walker import Walker
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from baseline import ATOL, FD_STEP, RTOL, ScipyStepMap  # noqa: E402
+from baseline import ATOL, FD_STEP, RTOL, ScipyStepMap, planar_constants, planar_rhs  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 RESULTS = HERE / "results" / "bench.json"
@@ -60,6 +60,9 @@ PUBLISHED_FIXED_POINT = np.array([
     -0.20031090054428 + 0.40062180108856, 0.19983247300499 - 0.01582299994832,
 ])
 PLANAR_BLOCK = [4, 5, 6, 7]
+#: Baselines whose right-hand side costs about what a careful Python user's would: the headline
+#: speed-up is against the faster of them.
+FAIR_BASELINES = ("baseline_compiled_rhs", "baseline_numpy_rhs")
 
 
 def simplest_walker(leg_mass: float = 1e-13) -> Params:
@@ -186,6 +189,21 @@ def case_rhs(walkers: dict) -> dict:
         t_vm = measure(lambda f=vm, x=x, p=p: f(x, p))
         vm_kernel = Kernel(vm)
         t_vm_kernel = measure(lambda k=vm_kernel, x=x, p=p: k(x, p))
+        hand = {}
+        if w.planar:
+            consts = planar_constants(w.params)
+            # the hand-written equations against ours at the gait's state and at random ones
+            rng = np.random.default_rng(0)
+            states = [x, *(x + 0.3 * rng.standard_normal(x.size) for _ in range(20))]
+            hand = {
+                "numpy_hand_written": measure(lambda c=consts, x=x: planar_rhs(x, c)),
+                "numpy_max_abs_difference_vs_compiled": max(
+                    float(np.max(np.abs(planar_rhs(s, consts) - kernel(s, p)[0].ravel()))) for s in states),
+            }
+            # a baseline integrating other equations would time something else: round-off only
+            if hand["numpy_max_abs_difference_vs_compiled"] > 1e-9:
+                raise RuntimeError(f"{name}: the hand-written right-hand side disagrees with ours by "
+                                   f"{hand['numpy_max_abs_difference_vs_compiled']:.2e}")
         out[name] = {
             "nx": int(x.size),
             "compiled_kernel": t_kernel,
@@ -196,6 +214,7 @@ def case_rhs(walkers: dict) -> dict:
             "speedup_kernel_vs_plain_call": _ratio(t_plain, t_kernel),
             "speedup_kernel_vs_vm_kernel": _ratio(t_vm_kernel, t_kernel),
             "max_abs_output_difference": agree,
+            **hand,
         }
     return out
 
@@ -248,7 +267,7 @@ def case_baseline(walkers: dict, refs: dict, ours_value: dict, ours_jac: dict) -
             },
             "reference_128": {"eigenvalues": _complex_list(ref_eig)},
         }
-        for kind in ("vm", "compiled"):
+        for kind in ("vm", "compiled", "numpy") if planar else ("vm", "compiled"):
             base = ScipyStepMap(w, rhs=kind)
             base.nfev = 0
             z_plus, t_step = base.step(z)
@@ -285,7 +304,7 @@ def _published_errors(entry: dict, ours_eig: np.ndarray, w: Walker, z: np.ndarra
     entry["ours"]["eigenvalue_error_vs_published"] = eigenvalue_distance(ours_eig, pub)
     entry["ours"]["eigenvalue_pair_error_vs_published"] = _pair_error(ours_eig)
     entry["ours"]["step_time_error_vs_published_s"] = abs(w.step(z).step_time - PUBLISHED_STEP_TIME)
-    for kind in ("vm", "compiled"):
+    for kind in ("vm", "compiled", "numpy"):
         b = entry[f"baseline_{kind}_rhs"]
         b_eig = np.array([complex(*v) for v in b["eigenvalues"]])
         b["eigenvalue_error_vs_published"] = eigenvalue_distance(b_eig, pub)
@@ -440,6 +459,9 @@ def print_table(res: dict) -> None:
                        ("casadi_vm", "CasADi VM, plain fn(x, p)"),
                        ("casadi_vm_preallocated_kernel", "CasADi VM, preallocated kernel")):
         row(label, lambda n, key=key: time_cell(res["rhs_call"][n][key]))
+    row("NumPy, written by hand (planar only)",
+        lambda n: time_cell(res["rhs_call"][n]["numpy_hand_written"]) if "numpy_hand_written"
+        in res["rhs_call"][n] else f"{'-':>22}")
     for key, label in (("speedup_kernel_vs_vm", "speedup compiled kernel vs VM plain"),
                        ("speedup_kernel_vs_vm_kernel", "speedup compiled kernel vs VM kernel")):
         row(label, lambda n, key=key: ratio_cell(res["rhs_call"][n][key]))
@@ -455,8 +477,16 @@ def print_table(res: dict) -> None:
     row("max |J - J(128/unit)|", lambda n: sci_cell(jac[n]["jacobian_max_abs_diff_vs_reference"]))
     print("4. vs SciPy solve_ivp DOP853 (rtol=atol=1e-12) + event + collide + central FD (1e-6)")
     b = res["baseline"]
-    for kind, label in (("compiled", "compiled rhs (the fair one: the headline)"),
+    for kind, label in (("compiled", "compiled rhs (fair)"),
+                        ("numpy", "rhs written by hand in NumPy (fair; planar only)"),
                         ("vm", "uncompiled rhs (slow to call: a footnote)")):
+        if any(f"baseline_{kind}_rhs" not in b[n] for n in names):
+            names_kind = [n for n in names if f"baseline_{kind}_rhs" in b[n]]
+            print(f"   baseline, {label}: " + ", ".join(
+                f"{n} {_us(b[n][f'baseline_{kind}_rhs']['step_map_and_jacobian'])} with the Jacobian, "
+                f"ours {b[n][f'baseline_{kind}_rhs']['speedup_step_map_and_jacobian']['ratio_median']:.1f}x "
+                f"faster" for n in names_kind))
+            continue
         base = {n: b[n][f"baseline_{kind}_rhs"] for n in names}
         print(f"   baseline, {label}")
         row("  step map time (median)", lambda n, base=base: time_cell(base[n]["step_map"]))
@@ -492,7 +522,7 @@ def print_table(res: dict) -> None:
     row("step map", lambda n: f"{eo[n]['step_map']['cost_ratio_median']:>21.2f}x")
     row("step map + Jacobian", lambda n: f"{eo[n]['step_map_and_jacobian']['cost_ratio_median']:>21.2f}x")
     row("max |J_effects - J_seed|", lambda n: sci_cell(eo[n]["jacobian_max_abs_diff"]))
-    print("aims (>= 30x faster step map + Jacobian than the baseline with the compiled rhs; "
+    print("aims (>= 30x faster step map + Jacobian than the faster fair baseline; "
           "eigenvalues >= 100x more accurate):")
     for k, v in res["aims"].items():
         print(f"   {k}: {v}")
@@ -539,14 +569,18 @@ def main() -> dict:
     res["effects_overhead"] = case_effects_overhead(walkers)
     pl = res["baseline"]["planar_simplest"]["baseline_vm_rhs"]
     d3 = res["baseline"]["walker_3d"]["baseline_vm_rhs"]
-    # The headline speed is against the fair baseline: SciPy's integrator calling our compiled
-    # right-hand side, as fast a call as a hand-written NumPy one. The uncompiled one is slow to
-    # call, so a ratio against it credits the method with the cost of the call (a footnote).
-    fair = {n: res["baseline"][n]["baseline_compiled_rhs"]["speedup_step_map_and_jacobian"]["ratio_median"]
+    # The headline speed is against the fair baselines: SciPy's integrator calling our compiled
+    # right-hand side, and (planar) one written by hand in NumPy; the faster of the two, so the
+    # smaller ratio, is the headline. The uncompiled right-hand side is slow to call, so a ratio
+    # against it credits the method with the cost of the call (a footnote).
+    fair = {n: min(entry["speedup_step_map_and_jacobian"]["ratio_median"]
+                   for kind, entry in res["baseline"][n].items() if kind in FAIR_BASELINES)
             for n in ("planar_simplest", "walker_3d")}
     res["aims"] = {
         "speedup_step_map_and_jacobian_planar": round(fair["planar_simplest"], 1),
         "speedup_step_map_and_jacobian_3d": round(fair["walker_3d"], 1),
+        "fair_baselines": {n: sorted(k for k in res["baseline"][n] if k in FAIR_BASELINES)
+                           for n in ("planar_simplest", "walker_3d")},
         "speed_aim_30x_met": bool(min(fair.values()) >= 30),
         "footnote_speedup_vs_uncompiled_rhs_planar": round(
             pl["speedup_step_map_and_jacobian"]["ratio_median"], 1),
