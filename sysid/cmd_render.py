@@ -22,7 +22,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-__all__ = ["cmd_render", "register"]
+__all__ = ["cmd_render", "out_of_view_warning", "register"]
 
 
 def register(subparsers) -> None:
@@ -146,7 +146,22 @@ def cmd_render(args) -> int:
     print(f"rendered {result.n_frames} frames{engine} ({camera.width}x{camera.height}, {options.fps:g} fps, "
           f"noise level {args.noise}, seed {seed}, {shot}) in {result.seconds:.1f} s -> {out}; truth in "
           f"{result.paths['truth'].name}")
+    if result.in_view is not None and np.any(result.in_view < 1):
+        print(out_of_view_warning(result.frame_times, result.in_view), file=sys.stderr)
     return 0
+
+
+def out_of_view_warning(times, in_view) -> str:
+    """One line saying in how many frames, and from when to when, the walker is partly or wholly
+    outside the image (``in_view``: each frame's share of it inside, shape (n,))."""
+    import numpy as np
+
+    times, in_view = np.asarray(times, float), np.asarray(in_view, float)
+    partly = np.flatnonzero(in_view < 1)
+    gone = int(np.sum(in_view == 0))
+    return (f"warning: the walker is not wholly in the camera's view in {len(partly)} of {len(times)} "
+            f"frames ({times[partly[0]]:.2f}-{times[partly[-1]]:.2f} s; none of it in {gone}): the "
+            "tracker makes frames it cannot measure gaps. Without --camera the camera frames the walk")
 
 
 def _progress(k: int, n: int) -> None:

@@ -56,7 +56,7 @@ from .scene import CameraPath, Scene, WalkerState, default_view
 
 __all__ = ["BLUR_STEP_PX", "NOISE_LEVELS", "Filming", "Motion", "RenderError", "RenderOptions",
            "RenderResult", "default_filming", "draw_occluder", "occluder_schedule", "output_paths",
-           "params_record", "render", "shoot_times", "video_target", "write_shoot"]
+           "params_record", "render", "share_in_view", "shoot_times", "video_target", "write_shoot"]
 
 _CODECS = {".mp4": "mp4v", ".avi": "MJPG"}
 
@@ -202,11 +202,15 @@ class RenderResult:
     frame_times : ndarray, shape (n_frames,)
     seconds : float
         Wall-clock render time.
+    in_view : ndarray, shape (n_frames,), or None
+        Each frame's share of the walker's mesh vertices inside the image (:func:`share_in_view`;
+        1 when the whole walker is filmed), or None where the renderer does not say.
     """
 
     paths: dict
     frame_times: np.ndarray
     seconds: float
+    in_view: np.ndarray | None = None
 
     @property
     def n_frames(self) -> int:
@@ -619,7 +623,28 @@ def render(table, params, camera: Camera, layout: MarkerLayout, options: RenderO
     film = Filming(table, params, camera, layout, options, rng, path)
     write_shoot(film, table, params, layout, paths, codec=codec, lens=film.camera, source=source, seed=seed,
                 progress=progress)
-    return RenderResult(paths=paths, frame_times=film.times, seconds=_time.perf_counter() - t_start)
+    return RenderResult(paths=paths, frame_times=film.times, seconds=_time.perf_counter() - t_start,
+                        in_view=share_in_view(film))
+
+
+def share_in_view(film: Filming) -> np.ndarray:
+    """Each frame's share (0 to 1) of the walker's mesh vertices (legs and flags) that the camera
+    sees inside its image at the frame's time: 1 when the whole walker is filmed, 0 when none of
+    it is (a walk that leaves a given camera's view; the tracker makes such frames gaps).
+
+    Returns
+    -------
+    ndarray, shape (n_frames,)
+    """
+    share = np.empty(len(film.times))
+    for k, t in enumerate(film.times):
+        t = float(t)
+        rvec, tvec = film.camera.ramp_pose if film.path is None else film.path.pose(t)
+        uv = project(film.camera, film.scene.walker_points(film.motion.state(t)), rvec, tvec)
+        inside = (np.isfinite(uv).all(axis=1) & (uv[:, 0] >= 0) & (uv[:, 0] <= film.camera.width - 1)
+                  & (uv[:, 1] >= 0) & (uv[:, 1] <= film.camera.height - 1))
+        share[k] = inside.mean()
+    return share
 
 
 def video_target(out_path: str | Path, options: RenderOptions) -> tuple[dict, str]:

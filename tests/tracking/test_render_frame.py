@@ -2,11 +2,15 @@
 following a long walk down the ramp), a given camera lets the walker leave its view without
 error, and the tracker marks the frames without the walker as gaps."""
 
+import subprocess
+
 import cv2
 import numpy as np
 import pytest
-from toywalk.model.trajectory import TrajectoryTable
-from toywalk.tracking.camera import load_camera, project
+from toywalk.model.parameters import save_params
+from toywalk.model.trajectory import TrajectoryTable, write_trajectory
+from toywalk.sysid.cmd_render import out_of_view_warning
+from toywalk.tracking.camera import load_camera, project, save_camera
 from toywalk.tracking.detect import MarkerDetector
 from toywalk.tracking.markers import body_points, default_layout, load_layout, marker_corners
 from toywalk.tracking.pose import estimate_pose
@@ -15,6 +19,7 @@ from toywalk.tracking.render import Filming, RenderOptions, default_filming, ren
 from toywalk.tracking.scene import Scene, default_camera_for, look_at
 from toywalk.tracking.track import track_video
 
+from .synthetic import TOYWALK
 from .test_track import PARAMS  # the toy-sized walker, 15 cm legs
 
 NAMES = ("lean", "steer", "pitch_left", "pitch_right")
@@ -139,11 +144,37 @@ def leaving(tmp_path_factory):
     in_view = np.array([_inside(camera, camera.ramp_pose, film.scene.walker_points(film.motion.state(t)))
                         .mean() for t in film.times])
     truth = np.array([film.motion.angles(t) for t in film.times])
-    return tracked, in_view, truth
+    return tracked, in_view, truth, result
+
+
+def test_the_render_says_where_the_walker_leaves_the_view(leaving, tmp_path):
+    """render() reports each frame's share of the walker in view (the same as this file's own
+    projection of the walker's vertices), and the command warns, in one line, when the walker is
+    not wholly filmed; a camera that frames the walk gives no warning."""
+    _, in_view, _, result = leaving
+    np.testing.assert_array_equal(result.in_view, in_view)
+    line = out_of_view_warning(result.frame_times, result.in_view)
+    partly, gone = int(np.sum(in_view < 1)), int(np.sum(in_view == 0))
+    assert f"in {partly} of {len(in_view)} frames" in line and f"none of it in {gone})" in line
+    table = _walk(0.1, 0.9, 3.2)
+    write_trajectory(table, tmp_path / "walk.csv")
+    save_params(PARAMS, tmp_path / "walker.toml")
+    save_camera(default_camera_for(PARAMS), tmp_path / "camera.json")
+    common = ["render", str(tmp_path / "walk.csv"), "--params", str(tmp_path / "walker.toml"),
+              "--noise", "0", "--fps", "5", "--size", "320x180"]
+    given = subprocess.run([TOYWALK, *common[:-2], "--camera", str(tmp_path / "camera.json"),
+                            "--out", str(tmp_path / "given.mp4")],
+                           capture_output=True, text=True, timeout=300)
+    assert given.returncode == 0, given.stderr
+    assert "warning: the walker is not wholly in the camera's view" in given.stderr
+    framed = subprocess.run([TOYWALK, *common, "--out", str(tmp_path / "framed.mp4")],
+                            capture_output=True, text=True, timeout=300)
+    assert framed.returncode == 0, framed.stderr
+    assert "warning" not in framed.stderr
 
 
 def test_frames_without_the_walker_are_gaps(leaving):
-    tracked, in_view, truth = leaving
+    tracked, in_view, truth, _ = leaving
     assert (in_view == 1).sum() >= 5 and (in_view == 0).sum() >= 5  # both kinds of frame
     for k, name in enumerate(NAMES):
         gone = in_view == 0
