@@ -304,8 +304,7 @@ def _published_errors(entry: dict, ours_eig: np.ndarray, w: Walker, z: np.ndarra
     entry["ours"]["eigenvalue_error_vs_published"] = eigenvalue_distance(ours_eig, pub)
     entry["ours"]["eigenvalue_pair_error_vs_published"] = _pair_error(ours_eig)
     entry["ours"]["step_time_error_vs_published_s"] = abs(w.step(z).step_time - PUBLISHED_STEP_TIME)
-    for kind in ("vm", "compiled", "numpy"):
-        b = entry[f"baseline_{kind}_rhs"]
+    for b in (v for k, v in entry.items() if k.startswith("baseline_")):
         b_eig = np.array([complex(*v) for v in b["eigenvalues"]])
         b["eigenvalue_error_vs_published"] = eigenvalue_distance(b_eig, pub)
         b["eigenvalue_pair_error_vs_published"] = _pair_error(b_eig)
@@ -452,6 +451,11 @@ def print_table(res: dict) -> None:
     def sci_cell(v: float) -> str:
         return f"{v:>22.2e}"
 
+    def per_walker(entries: dict, cell):
+        """A row's cell function: ``cell(entry)`` of each walker's entry, a dash where it has none
+        (the hand-written right-hand side is the planar walker's only)."""
+        return lambda n: f"{'-':>22}" if entries.get(n) is None else cell(entries[n])
+
     print()
     print("1. right-hand side, one call (median)      " + "".join(f"{n:>22}" for n in names))
     for key, label in (("compiled_kernel", "compiled, preallocated kernel"),
@@ -460,8 +464,7 @@ def print_table(res: dict) -> None:
                        ("casadi_vm_preallocated_kernel", "CasADi VM, preallocated kernel")):
         row(label, lambda n, key=key: time_cell(res["rhs_call"][n][key]))
     row("NumPy, written by hand (planar only)",
-        lambda n: time_cell(res["rhs_call"][n]["numpy_hand_written"]) if "numpy_hand_written"
-        in res["rhs_call"][n] else f"{'-':>22}")
+        per_walker({n: res["rhs_call"][n].get("numpy_hand_written") for n in names}, time_cell))
     for key, label in (("speedup_kernel_vs_vm", "speedup compiled kernel vs VM plain"),
                        ("speedup_kernel_vs_vm_kernel", "speedup compiled kernel vs VM kernel")):
         row(label, lambda n, key=key: ratio_cell(res["rhs_call"][n][key]))
@@ -480,24 +483,17 @@ def print_table(res: dict) -> None:
     for kind, label in (("compiled", "compiled rhs (fair)"),
                         ("numpy", "rhs written by hand in NumPy (fair; planar only)"),
                         ("vm", "uncompiled rhs (slow to call: a footnote)")):
-        if any(f"baseline_{kind}_rhs" not in b[n] for n in names):
-            names_kind = [n for n in names if f"baseline_{kind}_rhs" in b[n]]
-            print(f"   baseline, {label}: " + ", ".join(
-                f"{n} {_us(b[n][f'baseline_{kind}_rhs']['step_map_and_jacobian'])} with the Jacobian, "
-                f"ours {b[n][f'baseline_{kind}_rhs']['speedup_step_map_and_jacobian']['ratio_median']:.1f}x "
-                f"faster" for n in names_kind))
-            continue
-        base = {n: b[n][f"baseline_{kind}_rhs"] for n in names}
+        base = {n: b[n].get(f"baseline_{kind}_rhs") for n in names}
         print(f"   baseline, {label}")
-        row("  step map time (median)", lambda n, base=base: time_cell(base[n]["step_map"]))
+        row("  step map time (median)", per_walker(base, lambda e: time_cell(e["step_map"])))
         row("  step map + Jacobian time (median)",
-            lambda n, base=base: time_cell(base[n]["step_map_and_jacobian"]))
-        row("  speedup of ours, step map", lambda n, base=base: ratio_cell(base[n]["speedup_step_map"]))
+            per_walker(base, lambda e: time_cell(e["step_map_and_jacobian"])))
+        row("  speedup of ours, step map", per_walker(base, lambda e: ratio_cell(e["speedup_step_map"])))
         row("  speedup of ours, step map + Jacobian",
-            lambda n, base=base: ratio_cell(base[n]["speedup_step_map_and_jacobian"]))
-        row("  eigenvalue diff vs ours", lambda n, base=base: sci_cell(base[n]["eigenvalue_diff_vs_ours"]))
+            per_walker(base, lambda e: ratio_cell(e["speedup_step_map_and_jacobian"])))
+        row("  eigenvalue diff vs ours", per_walker(base, lambda e: sci_cell(e["eigenvalue_diff_vs_ours"])))
         row("  eigenvalue diff vs 128/unit reference",
-            lambda n, base=base: sci_cell(base[n]["eigenvalue_diff_vs_reference_128"]))
+            per_walker(base, lambda e: sci_cell(e["eigenvalue_diff_vs_reference_128"])))
     row("ours: eigenvalue diff vs 128/unit ref.",
         lambda n: sci_cell(b[n]["ours"]["eigenvalue_diff_vs_reference_128"]))
     pl = b["planar_simplest"]
