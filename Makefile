@@ -30,6 +30,8 @@ bench: $(STAMP)
 	$(PY) benchmarks/run_all.py
 	$(PY) benchmarks/track_accuracy.py
 	$(PY) benchmarks/marker_layouts.py
+	$(PY) benchmarks/corner_errors.py
+	$(PY) benchmarks/corner_errors.py --lossless
 	$(PY) benchmarks/sample_speed.py
 	$(PY) benchmarks/diagnose_speed.py
 
