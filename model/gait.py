@@ -34,6 +34,14 @@ __all__ = ["Gait", "GaitNotFound", "Stability", "continue_gait", "find_gait", "p
 # sqrt(l/g)) and iteration cap.
 _NEWTON_TOL = 1e-11
 _NEWTON_MAXIT = 40
+#: A real step-map eigenvalue this close to +1 marks a gait at a fold of its branch (a saddle-node,
+#: where it merges with a partner gait): its fixed point moves by 1 / (1 - lambda), over 1000
+#: times a parameter's change, and a small change can remove it. The shipped walkers' nearest
+#: eigenvalues to +1 lie 2.2e-4 (the Tinkertoy fit, which sits on its fold: docs/effects_study.md)
+#: and 9.9e-3 to 0.86 away.
+NEAR_FOLD = 1e-3
+#: Relative slope change used to tell on which side of a fold the gait exists.
+_FOLD_PROBE = 1e-3
 
 
 class GaitNotFound(RuntimeError):
@@ -100,6 +108,14 @@ class Gait(Stability):
     def period(self) -> int:
         """Steps per period: 1 (step-periodic) or 2 (stride-periodic)."""
         return len(self.steps)
+
+    @property
+    def fold_eigenvalue(self) -> float | None:
+        """The real step-map eigenvalue within :data:`NEAR_FOLD` of +1 (the gait is at a fold of its
+        branch), or None."""
+        real = [float(e.real) for e in self.eigenvalues if abs(e.imag) <= 1e-12]
+        near = min(real, key=lambda v: abs(v - 1.0), default=None)
+        return near if near is not None and abs(near - 1.0) < NEAR_FOLD else None
 
     def growth_factor(self, n_steps: int) -> float:
         """How much the worst perturbation grows over n steps: |lambda_max|^(n / period)."""
@@ -207,6 +223,7 @@ class Gait(Stability):
             "collision_loss": [s.collision_loss for s in self.steps],
             "residual": self.residual,
             "iterations": self.iterations,
+            "fold_eigenvalue": self.fold_eigenvalue,
         }
 
 
@@ -430,7 +447,7 @@ def _gaits(params: Params, z_guess: np.ndarray | None, planar: bool, steps_per_t
         except GaitNotFound as err:
             reasons.append(
                 f"the walker without effects walks (step time {base.step_time:.4g} s) but its gait "
-                f"does not follow to these effects: {err}"
+                f"does not follow to these effects: {err}{_fold_note(base, steps_per_time_unit)}"
             )
         return
     reduced = planar_reduction(params)
@@ -488,6 +505,35 @@ def continue_gait(start: Params, end: Params, z_start: np.ndarray, steps_per_tim
         z, s = gait.fixed_point, s_new
         ds = min(0.5, ds * 1.5)
     return gait
+
+
+def _fold_note(gait: Gait, steps_per_time_unit: int) -> str:
+    """Why a gait at a fold (:attr:`Gait.fold_eigenvalue`) may not follow to a change, and on which
+    side of its slope it exists (each side solved from it); '' for a gait not at a fold."""
+    lam = gait.fold_eigenvalue
+    if lam is None:
+        return ""
+    exists = {}
+    for side, factor in (("steeper", 1.0 + _FOLD_PROBE), ("shallower", 1.0 - _FOLD_PROBE)):
+        walker = Walker(gait.params.replace(slope=gait.params.slope * factor), planar=gait.planar,
+                        period=gait.period, steps_per_time_unit=steps_per_time_unit)
+        try:
+            solve_fixed_point(walker, gait.fixed_point)
+            exists[side] = True
+        except GaitNotFound:
+            exists[side] = False
+    pct = f"{100 * _FOLD_PROBE:g} %"
+    if exists["steeper"] and not exists["shallower"]:
+        where = (f"; it exists on a ramp {pct} steeper but not on one {pct} shallower, so an effect that "
+                 f"costs it energy, as a shallower ramp would, removes it: try a steeper slope")
+    elif exists["shallower"] and not exists["steeper"]:
+        where = (f"; it exists on a ramp {pct} shallower but not on one {pct} steeper, so an effect that "
+                 f"gives it energy, as a steeper ramp would, removes it: try a shallower slope")
+    else:
+        where = ""
+    return (f". That gait is at a fold of its branch (a step-map eigenvalue {lam:.6g}, {abs(1 - lam):.2g} "
+            f"from 1: a small change moves it by {1 / abs(1 - lam):.3g} times as much, or removes it)"
+            f"{where} (docs/effects_study.md)")
 
 
 def _without_effects(params: Params) -> Params:

@@ -96,6 +96,10 @@ def _print_gait(report: dict, out=None) -> None:
     verdict = "stable" if report["stable"] else "unstable"
     print(f"max |eigenvalue|  {report['max_abs_eigenvalue']:.6g} ({verdict}; over 20 steps a "
           f"perturbation grows by {report['growth_factor_20_steps']:.3g})", file=out)
+    lam = report.get("fold_eigenvalue")
+    if lam is not None:
+        print(f"at a fold         an eigenvalue {lam:.6g} lies {abs(1 - lam):.2g} from 1: the gait is at the "
+              f"end of its branch, and a small change of slope or an effect can remove it", file=out)
     losses = ", ".join(f"{loss:.4g}" for loss in report["collision_loss"])
     print(f"collision loss    {losses} J per heel strike", file=out)
     swing = report["swing_clearance"]

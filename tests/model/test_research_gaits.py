@@ -312,3 +312,21 @@ def test_tinkertoy_fit_gait():
     assert_documented(1.0 / splayed.growth_rate, 0.212, 1e-3, "e-folding time (s)")
     assert_documented(1e3 * splayed.com_height, 44.5, 0.1, "centre of mass (mm)")
     assert_documented(1e3 * splayed.margin, 39.5, 0.1, "above the lateral centre (mm)")
+
+
+def test_tinkertoy_gait_is_at_a_fold_and_says_which_slopes_keep_it():
+    """docs/effects_study.md: the fit's gait sits on the fold of its branch (a real eigenvalue
+    0.99978 = 1 - 2.2e-4), existing on steeper slopes only, so that any effect that costs it
+    energy loses it; a user asking for one is told so. stable-toy's gait is nowhere near a fold."""
+    from toywalk.model.gait import NEAR_FOLD, _fold_note
+
+    gait = solve_fixed_point(Walker(load_params(DATA / "params" / "tinkertoy.toml")), np.array(Z_TINKERTOY))
+    assert_documented(gait.fold_eigenvalue, 0.99978, 1e-5, "eigenvalue near 1")
+    assert gait.summary()["fold_eigenvalue"] == gait.fold_eigenvalue
+    note = _fold_note(gait, 16)
+    # the side is solved, not assumed: on a ramp 0.1 % steeper the gait exists, 0.1 % shallower not
+    assert "exists on a ramp 0.1 % steeper but not on one 0.1 % shallower" in note, note
+    assert "try a steeper slope" in note and "0.999779" in note
+    stable = find_gait(load_params(DATA / "params" / "stable-toy.toml"))
+    assert np.min(np.abs(stable.eigenvalues - 1.0)) > 100 * NEAR_FOLD  # 0.75 (docs/gaits.md)
+    assert stable.fold_eigenvalue is None and _fold_note(stable, 16) == ""
