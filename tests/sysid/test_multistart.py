@@ -172,7 +172,11 @@ def test_fit_command_multistart(tmp_path):
     assert out.returncode == 0, out.stderr
     lines = out.stdout.splitlines()
     for k, name in enumerate(("user, stable-toy", "toy-sized")):
-        assert any(line.startswith(f"start {k + 1} ({name}): Solve_Succeeded") for line in lines)
+        # either of IPOPT's successes (the toy-sized start, stepped from the measured strikes to
+        # the model's, ends at the acceptable level: the same optimum, checked below)
+        assert any(line.startswith((f"start {k + 1} ({name}): Solve_Succeeded",
+                                    f"start {k + 1} ({name}): Solved_To_Acceptable_Level"))
+                   for line in lines), lines
     assert "multistart (periodic): the starts agree" in out.stdout
     report = json.loads((tmp_path / "fit.json").read_text())
     block = report["multistart"]
