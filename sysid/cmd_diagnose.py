@@ -65,9 +65,11 @@ def cmd_diagnose(args) -> int:
         return _summary(args, params, out)
     try:
         table = read_trajectory(args.trajectory)
-        observations(table)  # a walk that cannot be fitted is refused before the progress lines
+        obs = observations(table)  # a walk that cannot be fitted is refused before the progress lines
     except (OSError, ValueError) as err:
         raise CommandError(str(err)) from err
+    if obs.note:
+        _say(obs.note)
 
     alpha = _alpha(args)
     workers = _workers(args)
@@ -176,9 +178,11 @@ def _walks(args, out) -> int:
             raise CommandError(f"{path} holds summary statistics: those are analysed one file at a time")
         try:
             table = read_trajectory(path)
-            observations(table)
+            obs = observations(table)
         except (OSError, ValueError) as err:
             raise CommandError(f"{path}: {err}") from err
+        if obs.note:
+            _say(f"{path}: {obs.note}")
         tables.append(table)
     alpha = _alpha(args)
     free = _free(args)

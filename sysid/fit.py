@@ -903,7 +903,7 @@ class _Problem:
             estimates.update(zip(POSITION_NUISANCES, map(float, self.origin_of(x)), strict=True))
         if self.stage == 1.0:
             estimates["time_offset"] = float(x[-1] * self.t_scale)
-        notes: list[str] = []
+        notes: list[str] = [self.obs.note] if self.obs.note else []
         jac = self.jacobian(x, sigma)
         # The information over every unknown the data see (the free start of a transient too);
         # the reported covariance is its inverse's block of the free parameters and offsets.

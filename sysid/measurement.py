@@ -51,7 +51,7 @@ from toywalk.model.collocation import BVP
 from toywalk.model.trajectory import SIGNALS, TrajectoryTable
 
 __all__ = ["OFFSETS", "POSITION_NUISANCES", "MeasurementError", "Observations", "Path", "Timing",
-           "components", "first_side", "lagrange_weights", "model_steps", "observations",
+           "complete_steps", "components", "first_side", "lagrange_weights", "model_steps", "observations",
            "offsets_design", "operator", "path", "step_counts", "timing"]
 
 #: Nuisance offsets (rad), one per group of signals: lean, steer, and both pitches.
@@ -59,6 +59,14 @@ OFFSETS = ("lean_offset", "steer_offset", "pitch_offset")
 _OFFSET_OF = {"lean": 0, "steer": 1, "pitch_left": 2, "pitch_right": 2}
 #: Nuisance unknowns of measured contact positions (m): where the first measured contact lies.
 POSITION_NUISANCES = ("origin_x", "origin_y")
+
+
+#: A step (strike to strike) lasting this many times the walk's median step holds missed strikes:
+#: two missed in a row leave an interval of about three steps with the feet still alternating (one
+#: missed leaves the same foot twice in a row). A walk's steps vary far less, even off its cycle:
+#: the stable toy released with 1.3 and 2 times its lean rate (tests/sysid/test_transient.py)
+#: steps 0.80-1.09 times its median step over 12 steps.
+MISSED_STEP_RATIO = 2.0
 
 
 class MeasurementError(ValueError):
@@ -92,6 +100,8 @@ class Observations:
     contact, contact_sd : ndarray, shape (n_steps + 1, 2)
         Each heel strike's contact position on the ramp (m, ramp frame: down the fall line, to
         the left) and its standard deviation (m); NaN where the file gives none.
+    note : str or None
+        What was set aside, and why, where heel strikes are missing (:func:`complete_steps`).
     """
 
     step_start: np.ndarray
@@ -107,6 +117,7 @@ class Observations:
     strike_sd: np.ndarray
     contact: np.ndarray = None
     contact_sd: np.ndarray = None
+    note: str | None = None
 
     def __post_init__(self):
         unknown = np.full((len(self.strike_sd), 2), np.nan)
@@ -142,13 +153,61 @@ class Observations:
         return bool(np.all(np.isfinite(self.contact_sd[self.located])))
 
 
+def complete_steps(times, feet) -> tuple[int, int, list[str]]:
+    """The longest run of consecutive heel strikes each pair of which bounds one step, where
+    strikes are missing (a tracker loses one to blur or an occluder).
+
+    Between two strikes by the same foot, or two more than :data:`MISSED_STEP_RATIO` median steps
+    apart, a strike is missing: that interval is not a step, and a walk read across it would
+    compare several steps with one model step. The measurement model's steps follow one another
+    (the transient model's are one walk), so the longest run of single steps is kept.
+
+    Parameters
+    ----------
+    times : array_like, shape (n,)
+        Heel-strike times (s), increasing.
+    feet : sequence of str, shape (n,)
+        'L' or 'R'.
+
+    Returns
+    -------
+    first, last : int
+        The run's first and last strike (indices into ``times``).
+    gaps : list of str
+        Each interval that is not a step, described (empty when every one is).
+    """
+    times = np.asarray(times, float)
+    steps = np.diff(times)
+    alternate = np.array([a != b for a, b in zip(feet[:-1], feet[1:], strict=True)])
+    typical = float(np.median(steps[alternate])) if alternate.any() else float(np.median(steps))
+    gaps, good = [], np.ones(len(steps), bool)
+    for k, (dt, alt) in enumerate(zip(steps, alternate, strict=True)):
+        if not alt:
+            gaps.append(f"{feet[k]} at {times[k]:.4g} s and again at {times[k + 1]:.4g} s")
+        elif dt > MISSED_STEP_RATIO * typical:
+            gaps.append(f"{times[k]:.4g} to {times[k + 1]:.4g} s, {dt / typical:.1f} median steps")
+        else:
+            continue
+        good[k] = False
+    best, first, start = 0, 0, 0
+    for k in range(len(steps) + 1):
+        if k == len(steps) or not good[k]:
+            if k - start > best:
+                best, first = k - start, start
+            start = k + 1
+    return first, first + best, gaps
+
+
 def observations(table: TrajectoryTable, signals=SIGNALS) -> Observations:
     """Arrange a measured trajectory for fitting (complete steps between heel strikes only).
+
+    Where heel strikes are missing, the longest run of complete steps (:func:`complete_steps`);
+    :attr:`Observations.note` says what was set aside.
 
     Raises
     ------
     MeasurementError
-        Fewer than two complete steps, heel strikes out of order, or no usable samples.
+        Fewer than two complete steps (in a row), heel strikes out of order, or no usable samples.
     """
     events = sorted(table.events, key=lambda e: e["time"])
     times = np.array([e["time"] for e in events], dtype=float)
@@ -161,8 +220,17 @@ def observations(table: TrajectoryTable, signals=SIGNALS) -> Observations:
     feet = [e["foot"] for e in events]
     if any(f not in ("L", "R") for f in feet):
         raise MeasurementError("every heel strike needs its foot, 'L' or 'R'")
-    if any(a == b for a, b in zip(feet, feet[1:], strict=False)):
-        raise MeasurementError("heel strikes must alternate between the feet (a strike is missing)")
+    first, last, gaps = complete_steps(times, feet)
+    note = None
+    if gaps:
+        missing = "; ".join(gaps)
+        if last - first < 2:
+            raise MeasurementError(f"heel strikes are missing ({missing}): no two complete steps in a row "
+                                   f"to fit")
+        aside = len(times) - 1 - (last - first)
+        note = (f"heel strikes are missing ({missing}): the {last - first} complete steps from "
+                f"{times[first]:.4g} to {times[last]:.4g} s are used, the other {aside} intervals set aside")
+        events, times, feet = events[first:last + 1], times[first:last + 1], feet[first:last + 1]
     sd_t = np.array([e.get("time_sd", math.nan) for e in events], dtype=float)
     dt = float(np.median(np.diff(table.time))) if len(table.time) > 1 else 0.0
     if not np.all(np.isfinite(sd_t)):
@@ -204,7 +272,7 @@ def observations(table: TrajectoryTable, signals=SIGNALS) -> Observations:
                         duration_sd=np.hypot(sd_t[:-1], sd_t[1:]), step=data["step"].astype(int),
                         phase=np.clip(data["phase"], 0.0, 1.0), signal=data["signal"].astype(int),
                         value=data["value"], sd=data["sd"], time=data["time"], strike_sd=sd_t,
-                        contact=contact, contact_sd=contact_sd)
+                        contact=contact, contact_sd=contact_sd, note=note)
 
 
 def lagrange_weights(points, s) -> list:

@@ -84,13 +84,42 @@ def test_observations_refuse_unusable_walks(toy):
         observations(short)
     skipped = TrajectoryTable(table.time, table.signals, table.stance,
                               [table.events[0], table.events[2], table.events[3]], {})
-    with pytest.raises(MeasurementError, match="alternate"):
+    with pytest.raises(MeasurementError, match="missing .* no two complete steps in a row"):
         observations(skipped)
     bad = dict(table.signals)
     bad["lean"] = bad["lean"].copy()
     bad["lean"][5] = np.inf
     with pytest.raises(MeasurementError, match="infinite"):
         observations(TrajectoryTable(table.time, bad, table.stance, table.events, {}))
+
+
+def test_observations_keep_the_longest_run_of_complete_steps(toy):
+    """Where a tracker missed heel strikes, the walk's longest run of single steps is fitted and
+    the rest set aside, said in a note: one strike missed leaves the same foot twice in a row, two
+    missed leave the feet alternating across about three steps, which read as one step would
+    compare three steps with one model step (the fit took such a walk without a word)."""
+    table, _ = _walk(toy, 12, 0.0, 0)
+    events = table.events
+    whole = observations(table)
+    assert whole.note is None and whole.n_steps == 12
+    # one strike missed (the 4th): steps 0-2 and 4-11 (the same foot at events 3 and 5)
+    one = observations(TrajectoryTable(table.time, table.signals, table.stance,
+                                       events[:4] + events[5:], {}))
+    assert one.n_steps == 7 and one.step_start[0] == events[5]["time"]
+    assert "again at" in one.note and "the 7 complete steps" in one.note
+    # two missed in a row (the 9th and 10th): alternating feet across three steps, 3.0 median steps
+    two = observations(TrajectoryTable(table.time, table.signals, table.stance,
+                                       events[:9] + events[11:], {}))
+    assert two.n_steps == 8 and two.step_end[-1] == events[8]["time"]
+    assert "3.0 median steps" in two.note
+    # the kept run is read as the whole walk's same steps are: the same observations
+    same = whole.step >= 5
+    assert_allclose(one.value, whole.value[same])
+    assert_allclose(one.phase, whole.phase[same])
+    # the fit says what it set aside
+    result = fit(TrajectoryTable(table.time, table.signals, table.stance, events[:4] + events[5:], {}),
+                 toy, ["foot_radius"], n_intervals=12, check_jacobian=False)
+    assert result.warnings[0] == one.note
 
 
 def test_fit_recovers_foot_radius_mass_offset_and_impact_share(toy):
