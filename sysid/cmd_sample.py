@@ -52,7 +52,9 @@ def cmd_sample(args) -> int:
     try:
         summary = sample(report, table, out, walkers=args.walkers, steps=args.steps,
                          ensembles=args.ensembles, workers=args.workers, scheduler=args.scheduler,
-                         seed=args.seed, progress=sys.stderr.isatty())
+                         seed=args.seed, progress=sys.stderr.isatty(),
+                         log=None if sys.stderr.isatty() else
+                         lambda line: print(f"... {line}", file=sys.stderr, flush=True))
     except (SampleError, FitError, MeasurementError) as err:
         raise CommandError(str(err)) from err
     except OSError as err:

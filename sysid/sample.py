@@ -244,7 +244,7 @@ def worker_pool(workers: int, scheduler: str | None):
 
 def sample(report: dict, table: TrajectoryTable, out: str | Path, *, walkers: int = 32,
            steps: int = 1000, ensembles: int = 3, workers: int = 1, scheduler: str | None = None,
-           seed: int | None = 0, progress: bool = False) -> SampleSummary:
+           seed: int | None = 0, progress: bool = False, log=None) -> SampleSummary:
     """Sample the posterior of a fit's free parameters into ``out`` (HDF5), resuming it if present.
 
     Parameters
@@ -266,6 +266,11 @@ def sample(report: dict, table: TrajectoryTable, out: str | Path, *, walkers: in
         Makes the run reproducible.
     progress : bool
         Show emcee's progress bar.
+    log : callable, optional
+        ``log(line)`` receives one line of progress at every tenth of each ensemble's steps (how
+        far, how long so far, and about how long is left at the rate so far): for a log file,
+        where a progress bar is noise and nothing at all looks like a hang (the defaults take
+        tens of minutes on one core).
     """
     out = Path(out)
     existed = _check_chain_file(out)
@@ -278,7 +283,7 @@ def sample(report: dict, table: TrajectoryTable, out: str | Path, *, walkers: in
     seeds = np.random.SeedSequence(seed).spawn(ensembles)
     try:
         _run_ensembles(out, post, estimates, cov, walkers, steps, ensembles, seeds, workers,
-                       scheduler, progress)
+                       scheduler, progress, log)
     except BaseException:
         # A new chain file that holds no step yet is no result: remove it. Stored steps are kept
         # (an interrupted run resumes from them).
@@ -290,10 +295,14 @@ def sample(report: dict, table: TrajectoryTable, out: str | Path, *, walkers: in
 
 
 def _run_ensembles(out: Path, post, estimates, cov, walkers: int, steps: int, ensembles: int, seeds,
-                   workers: int, scheduler: str | None, progress: bool) -> None:
+                   workers: int, scheduler: str | None, progress: bool, log=None) -> None:
+    import time
+
     import emcee
 
     ndim = len(estimates)
+    start, todo = time.perf_counter(), None  # steps this run has to take, over every ensemble
+    taken = 0
     with worker_pool(workers, scheduler) as pool, _stop_between_steps() as stopped:
         for e in range(ensembles):
             backend = emcee.backends.HDFBackend(str(out), name=f"ensemble_{e}")
@@ -319,9 +328,24 @@ def _run_ensembles(out: Path, post, estimates, cov, walkers: int, steps: int, en
                                                   stopped),
                                     random_state=np.random.RandomState(
                                         rng.integers(2**32 - 1)).get_state())
-            for _ in sampler.sample(state, iterations=steps - done, progress=progress):
+            if todo is None:
+                todo = steps - done + (ensembles - 1 - e) * steps
+            every = max(1, steps // 10)
+            for k, _ in enumerate(sampler.sample(state, iterations=steps - done, progress=progress),
+                                  start=done + 1):
                 if stopped():  # this step is stored; stop before the next
                     raise KeyboardInterrupt
+                taken += 1
+                if log is not None and (k % every == 0 or k == steps):
+                    elapsed = time.perf_counter() - start
+                    left = elapsed / taken * (todo - taken)
+                    log(f"ensemble {e + 1} of {ensembles}: step {k} of {steps}, {_minutes(elapsed)} so "
+                        f"far, about {_minutes(left)} left")
+
+
+def _minutes(seconds: float) -> str:
+    """A duration for a progress line: seconds under two minutes, else minutes."""
+    return f"{seconds:.0f} s" if seconds < 120 else f"{seconds / 60:.0f} min"
 
 
 def _initialized(path: Path, name: str) -> bool:

@@ -125,6 +125,27 @@ def test_workers_and_dask_give_the_serial_chain(fitted, tmp_path):
     np.testing.assert_allclose(_chain(tmp_path / "dask.h5"), serial, rtol=1e-9)
 
 
+def test_progress_lines_for_a_log(fitted, tmp_path):
+    """Where stderr is not a terminal (a batch job's log), `sample` prints a progress line at every
+    tenth of each ensemble instead of a progress bar, or nothing for tens of minutes (the defaults
+    take 96,000 log-posterior evaluations); a resumed run counts on from the stored steps."""
+    _, walk, fit = fitted
+    report, table = json.loads(fit.read_text()), read_trajectory(walk)
+    lines = []
+    sample(report, table, tmp_path / "chain.h5", walkers=6, steps=20, ensembles=2, seed=1, log=lines.append)
+    assert len(lines) == 20  # every second step of two ensembles of 20
+    assert lines[0].startswith("ensemble 1 of 2: step 2 of 20, ") and "left" in lines[0]
+    assert lines[-1].startswith("ensemble 2 of 2: step 20 of 20, ") and lines[-1].endswith("about 0 s left")
+    lines.clear()
+    sample(report, table, tmp_path / "chain.h5", walkers=6, steps=30, ensembles=2, seed=1, log=lines.append)
+    assert [line.split(",")[0] for line in lines] == [f"ensemble {e} of 2: step {k} of 30" for e in (1, 2)
+                                                       for k in (21, 24, 27, 30)]
+    code, _, err = _run("sample", fit, walk, "--walkers", "6", "--steps", "5", "--ensembles", "1",
+                        "--out", tmp_path / "cli.h5")
+    assert code == 0, err
+    assert "... ensemble 1 of 1: step 5 of 5, " in err
+
+
 def test_sample_refuses_bad_input(fitted, tmp_path):
     _, walk, fit = fitted
     bad = tmp_path / "bad.json"
