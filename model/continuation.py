@@ -127,7 +127,12 @@ def _first_gait(params: Params, first: Params, name: str, start: float, planar, 
     or if that stops short, :func:`find_gait`."""
     own = params.get(name)
     if params.gait_start is None or own == start:
-        return find_gait(first, planar=planar)
+        try:
+            return find_gait(first, planar=planar)
+        except GaitNotFound as err:
+            if own == start:
+                raise
+            return _approach(params, first, name, own, start, planar, max_points, ds_max, err)
     try:
         approach = continue_branch(params, name, own, start, max_points=max_points, ds_max=ds_max,
                                    planar=planar)
@@ -146,6 +151,27 @@ def _first_gait(params: Params, first: Params, name: str, start: float, planar, 
         return find_gait(first, planar=planar)
     except GaitNotFound as err:
         raise GaitNotFound(f"{why}; and the search at {start:g} found none ({err})") from err
+
+
+def _approach(params: Params, first: Params, name: str, own: float, start: float, planar,
+              max_points: int, ds_max: float, search_err: GaitNotFound) -> Gait:
+    """Where the search found no gait at ``name = start``: the walker's own gait (at its own value
+    ``own``) followed there, or why it does not get there (a fold between: the Tinkertoy fit's gait
+    ends 1e-9 rad below its own slope, and a slope typed to seven digits lies past it)."""
+    try:
+        approach = continue_branch(params, name, own, start, max_points=max_points, ds_max=ds_max,
+                                   planar=planar)
+    except GaitNotFound:
+        raise search_err from None
+    if approach.status == "reached":
+        return solve_fixed_point(Walker(first, planar=approach.planar, period=approach.period),
+                                 approach.points[-1].fixed_point)
+    folds = [e.value for e in approach.events if e.kind == "fold"]
+    where = (f"folds back at {name} = {folds[0]:.10g} (a fold: no gait of this branch beyond it)"
+             if folds else f"stops short ({approach.status}: {approach.message})")
+    raise GaitNotFound(f"the walker's own gait at {name} = {own:.10g}, followed towards {start:.10g}, "
+                       f"{where}; the search at {start:.10g} found none either ({search_err})"
+                       ) from search_err
 
 
 def continue_branch(params: Params, name: str, start: float, end: float, max_points: int = 200,

@@ -140,3 +140,26 @@ def test_a_stored_gait_is_followed_to_the_first_value():
     assert branch.points[0].value == 0.065
     direct = find_gait(params.replace(slope=0.065))
     np.testing.assert_allclose(branch.points[0].fixed_point, direct.fixed_point, rtol=0, atol=1e-8)
+
+
+def test_a_first_value_past_the_walkers_fold_is_explained():
+    """The Tinkertoy fit's gait exists only down to about 1e-9 rad below its own slope
+    (docs/effects_study.md): a continuation asked to start at 0.0785398 (its slope to seven
+    digits) finds no gait there, and following the walker's own gait down says why: a fold, where
+    the search alone gave only "Newton did not converge". The search itself is stood in for here
+    (it takes a minute to fail); `_approach` is what runs after it."""
+    from toywalk.model.continuation import _approach
+    from toywalk.model.gait import GaitNotFound
+
+    params = load_params(DATA / "params" / "tinkertoy.toml")
+    own, start = params.slope, 0.0785398
+    assert start < own
+    with pytest.raises(GaitNotFound, match=r"folds back at slope = 0\.07853981\d* \(a fold") as err:
+        _approach(params, params.replace(slope=start), "slope", own, start, None, 20, 0.05,
+                  GaitNotFound("the search failed"))
+    assert "the search at 0.0785398 found none either (the search failed)" in str(err.value)
+    # and a value on the branch's side is reached from the walker's own gait
+    steeper = own * 1.001
+    gait = _approach(params, params.replace(slope=steeper), "slope", own, steeper, None, 20, 0.05,
+                     GaitNotFound("the search failed"))
+    assert gait.params.slope == steeper and gait.fold_eigenvalue is None
