@@ -53,7 +53,7 @@ from .residuals import ResidualReport, feature_misfit, missed_features, residual
 from .sample import worker_pool
 
 __all__ = ["ALPHA", "MAX_EXTENDED", "PARAMETERS", "SEPARATION", "Candidate", "Diagnosis",
-           "DiagnoseError", "Verdict", "candidates", "diagnose", "held_out", "held_out_fits",
+           "DiagnoseError", "Verdict", "candidates", "complete_rows", "diagnose", "held_out", "held_out_fits",
            "held_out_score", "held_out_tasks", "lr_p_value", "run_fits"]
 
 #: Family-wise false-alarm rate of the verdict.
@@ -516,6 +516,7 @@ def diagnose(table: TrajectoryTable, params: Params, *, free=(), effects=None, p
         evidence = f"{fallback}; {evidence}"
     if not significant and not res_base.systematic:
         seconds["total"] = time.perf_counter() - clock
+        complete_rows(ranking)
         return Diagnosis("adequate", None, [], ranking, {}, evidence, base, {}, res_base, None,
                          features, None, RULE, alpha, seconds)
     to_fit = (significant or ranking[:2])[:MAX_EXTENDED]
@@ -608,15 +609,25 @@ def diagnose(table: TrajectoryTable, params: Params, *, free=(), effects=None, p
                          f"equally well (chi-square {best['lr']:.1f} against {passing[1]['lr']:.1f})")
     else:
         evidence += "; no candidate's likelihood ratio is significant"
-    for row in ranking:
-        row.setdefault("score", row["score_z"] ** 2)
-        row.setdefault("estimate", {})
-        row.setdefault("interval", {})
+    complete_rows(ranking)
     ranking.sort(key=lambda r: (-r["lr"] if "lr" in r else math.inf, r["score_log_p"]))
     named_causes = causes if cause != "unexplained" else []
     return Diagnosis("discrepancy", cause if causes else "unexplained", named_causes, ranking,
                      gain_block, evidence, base, extended, res_base, res_ext, features,
                      features_ext, RULE, alpha, dict(seconds, total=time.perf_counter() - clock))
+
+
+def complete_rows(ranking: list) -> list:
+    """The keys every ranking row of a report has (pipeline.md: ``effect``, ``score``,
+    ``estimate``, ``interval``), in place, where a candidate was not fitted: its score the
+    likelihood ratio where there is one, else the score statistic ``z^2`` (None without either),
+    and empty estimate and interval. Returns ``ranking``."""
+    for row in ranking:
+        if "score" not in row:
+            row["score"] = row["lr"] if "lr" in row else (row["score_z"] ** 2 if "score_z" in row else None)
+        row.setdefault("estimate", {})
+        row.setdefault("interval", {})
+    return ranking
 
 
 def _base_fit(table, params: Params, free, options: dict, say,

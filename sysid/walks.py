@@ -47,6 +47,7 @@ from .discrepancy import (
     _masked,
     _strides,
     candidates,
+    complete_rows,
     held_out_fits,
     held_out_score,
     lr_p_value,
@@ -541,6 +542,7 @@ def diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], 
             row.update(lr=lr, lr_p=lr_p_value(lr, c.side != 0), estimate={c.name: f.estimates[c.name]},
                        interval={c.name: [low, high]})
         ranking.append(row)
+    complete_rows(ranking)
     ranking.sort(key=lambda r: -r.get("lr", -math.inf))
     significant = [r for r in ranking if "lr" in r and r["lr_p"] < alpha / k]
     held: dict = {}
