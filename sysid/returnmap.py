@@ -326,7 +326,9 @@ def section_states(table: TrajectoryTable, phase: float = 0.5, width: float = 0.
         states[:, i:i + 2] = e[:, :2]
         cov[:, i:i + 2, i:i + 2] = c
         grad[:, i:i + 2] = e[:, 1:3]
-    events = sorted(table.events, key=lambda ev: ev["time"])
+    # the strikes of the steps used (a run of complete steps where strikes are missing)
+    events = [ev for ev in sorted(table.events, key=lambda ev: ev["time"])
+              if obs.step_start[0] <= ev["time"] <= obs.step_end[-1]]
     strike_sd = np.array([ev.get("time_sd", math.nan) for ev in events], dtype=float)
     timing = bool(np.all(np.isfinite(strike_sd)))
     if timing:

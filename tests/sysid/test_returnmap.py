@@ -322,6 +322,22 @@ def test_given_sds_and_strike_timing(kicked):
     assert np.sqrt(np.mean(z_untimed[:, 6] ** 2)) > 3  # the swing pitch, moving at 6 rad/s
 
 
+def test_a_missed_strike_leaves_the_longest_run_with_its_timing(kicked):
+    """A tracker missed the 11th strike: the sections are those of the longest run of complete
+    steps (measurement.complete_steps), each with its own strikes' time SDs (the whole walk's
+    strike list against the run's steps had raised a shape mismatch)."""
+    table, truth = kicked
+    noisy = _noisy(table, 0.003, seed=7)
+    for ev in noisy.events:
+        ev["time_sd"] = 0.002
+    events = noisy.events[:10] + noisy.events[11:]
+    gapped = TrajectoryTable(noisy.time, noisy.signals, noisy.stance, events, noisy.metadata)
+    sec = section_states(gapped)
+    assert sec.timing and len(sec.step) == len(noisy.events) - 1 - 11  # steps 11 onwards
+    whole = section_states(noisy)
+    np.testing.assert_allclose(sec.states, whole.states[11:], rtol=0, atol=1e-12)
+
+
 def test_a_walk_on_its_cycle_holds_no_information(toy):
     """200 steps exactly on the cycle, 0.003 rad of noise: every direction's spread is noise (the
     largest sample eigenvalue of 8 noise directions from 99 pairs lies near (1 + sqrt(8/99))^2 =
