@@ -29,6 +29,9 @@ MARKERS = DATA / "markers" / "default.json"
 #: The compiled-function cache prints this once per machine when it compiles (model/compiled.py):
 #: information about a one-time cost, not an error line.
 _COMPILE_NOTICE = "toywalk: compiling "
+#: Progress lines on stderr (diagnose's stages; sample's tenths of each ensemble where stderr is
+#: not a terminal, as under pytest): not error lines either.
+_PROGRESS = "... "
 
 
 @dataclasses.dataclass
@@ -43,7 +46,7 @@ class Outcome:
     @property
     def err_lines(self) -> list[str]:
         return [line for line in self.err.splitlines()
-                if line.strip() and not line.startswith(_COMPILE_NOTICE)]
+                if line.strip() and not line.startswith((_COMPILE_NOTICE, _PROGRESS))]
 
 
 def toywalk(capfd, *argv) -> Outcome:
