@@ -124,54 +124,52 @@ def _first_gait(params: Params, first: Params, name: str, start: float, planar, 
     """The gait of ``first`` (``params`` with ``name = start``). A walker that stores a start near
     its own gait (``[gait] start``, found past a fold of the search's homotopy) has its gait
     followed from its own value to ``start``, where the search alone may not reach it; otherwise,
-    or if that stops short, :func:`find_gait`."""
+    or if that stops short, :func:`find_gait`, and where that finds none, the walker's own gait
+    followed there (:func:`_approach`)."""
     own = params.get(name)
-    if params.gait_start is None or own == start:
+    if own == start:
+        return find_gait(first, planar=planar)
+    if params.gait_start is not None:
+        gait, why = _follow_own(params, first, name, own, start, planar, max_points, ds_max)
+        if gait is not None:
+            return gait
         try:
             return find_gait(first, planar=planar)
         except GaitNotFound as err:
-            if own == start:
-                raise
-            return _approach(params, first, name, own, start, planar, max_points, ds_max, err)
+            raise GaitNotFound(f"{why}; and the search at {start:.10g} found none ({err})") from err
+    try:
+        return find_gait(first, planar=planar)
+    except GaitNotFound as err:
+        return _approach(params, first, name, own, start, planar, max_points, ds_max, err)
+
+
+def _follow_own(params: Params, first: Params, name: str, own: float, start: float, planar,
+                max_points: int, ds_max: float) -> tuple[Gait | None, str]:
+    """The walker's own gait (at its own value ``own``) followed to ``name = start``: (the gait of
+    ``first`` there, "") or (None, why it does not get there)."""
     try:
         approach = continue_branch(params, name, own, start, max_points=max_points, ds_max=ds_max,
                                    planar=planar)
     except GaitNotFound as err:
-        why = f"the walker's own gait at {name} = {own:g} is not found ({err})"
-    else:
-        if approach.status == "reached":
-            return solve_fixed_point(Walker(first, planar=approach.planar, period=approach.period),
-                                     approach.points[-1].fixed_point)
-        folds = [e.value for e in approach.events if e.kind == "fold"]
-        where = (f"it folds back at {name} = {folds[0]:.6g}" if folds else
-                 f"{approach.status}: {approach.message}")
-        why = (f"the walker's own gait, followed from {name} = {own:g}, does not reach {start:g} "
-               f"({where})")
-    try:
-        return find_gait(first, planar=planar)
-    except GaitNotFound as err:
-        raise GaitNotFound(f"{why}; and the search at {start:g} found none ({err})") from err
+        return None, f"the walker's own gait at {name} = {own:.10g} is not found ({err})"
+    if approach.status == "reached":
+        return solve_fixed_point(Walker(first, planar=approach.planar, period=approach.period),
+                                 approach.points[-1].fixed_point), ""
+    folds = [e.value for e in approach.events if e.kind == "fold"]
+    where = (f"folds back at {name} = {folds[0]:.10g} (a fold: no gait of this branch beyond it)"
+             if folds else f"stops short ({approach.status}: {approach.message})")
+    return None, f"the walker's own gait at {name} = {own:.10g}, followed towards {start:.10g}, {where}"
 
 
 def _approach(params: Params, first: Params, name: str, own: float, start: float, planar,
               max_points: int, ds_max: float, search_err: GaitNotFound) -> Gait:
-    """Where the search found no gait at ``name = start``: the walker's own gait (at its own value
-    ``own``) followed there, or why it does not get there (a fold between: the Tinkertoy fit's gait
+    """Where the search found no gait at ``name = start``: the walker's own gait followed there
+    (:func:`_follow_own`), or why it does not get there (a fold between: the Tinkertoy fit's gait
     ends 1e-9 rad below its own slope, and a slope typed to seven digits lies past it)."""
-    try:
-        approach = continue_branch(params, name, own, start, max_points=max_points, ds_max=ds_max,
-                                   planar=planar)
-    except GaitNotFound:
-        raise search_err from None
-    if approach.status == "reached":
-        return solve_fixed_point(Walker(first, planar=approach.planar, period=approach.period),
-                                 approach.points[-1].fixed_point)
-    folds = [e.value for e in approach.events if e.kind == "fold"]
-    where = (f"folds back at {name} = {folds[0]:.10g} (a fold: no gait of this branch beyond it)"
-             if folds else f"stops short ({approach.status}: {approach.message})")
-    raise GaitNotFound(f"the walker's own gait at {name} = {own:.10g}, followed towards {start:.10g}, "
-                       f"{where}; the search at {start:.10g} found none either ({search_err})"
-                       ) from search_err
+    gait, why = _follow_own(params, first, name, own, start, planar, max_points, ds_max)
+    if gait is not None:
+        return gait
+    raise GaitNotFound(f"{why}; the search at {start:.10g} found none either ({search_err})") from search_err
 
 
 def continue_branch(params: Params, name: str, start: float, end: float, max_points: int = 200,
