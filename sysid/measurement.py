@@ -102,6 +102,9 @@ class Observations:
         the left) and its standard deviation (m); NaN where the file gives none.
     note : str or None
         What was set aside, and why, where heel strikes are missing (:func:`complete_steps`).
+    strike_sd_measured : bool
+        Whether the events file gave every strike's ``time_sd`` (else :attr:`strike_sd` is the
+        sampling's, one sample interval over sqrt(12)).
     """
 
     step_start: np.ndarray
@@ -118,6 +121,7 @@ class Observations:
     contact: np.ndarray = None
     contact_sd: np.ndarray = None
     note: str | None = None
+    strike_sd_measured: bool = False
 
     def __post_init__(self):
         unknown = np.full((len(self.strike_sd), 2), np.nan)
@@ -232,8 +236,9 @@ def observations(table: TrajectoryTable, signals=SIGNALS) -> Observations:
                 f"{times[first]:.4g} to {times[last]:.4g} s are used, the other {aside} intervals set aside")
         events, times, feet = events[first:last + 1], times[first:last + 1], feet[first:last + 1]
     sd_t = np.array([e.get("time_sd", math.nan) for e in events], dtype=float)
+    measured = bool(np.all(np.isfinite(sd_t)))
     dt = float(np.median(np.diff(table.time))) if len(table.time) > 1 else 0.0
-    if not np.all(np.isfinite(sd_t)):
+    if not measured:
         # Strike times known only to the sampling: each uniform within one sample interval.
         sd_t = np.full(len(events), dt / math.sqrt(12.0))
     sd_t = np.maximum(sd_t, 1e-9 * max(dt, 1e-3))
@@ -272,7 +277,7 @@ def observations(table: TrajectoryTable, signals=SIGNALS) -> Observations:
                         duration_sd=np.hypot(sd_t[:-1], sd_t[1:]), step=data["step"].astype(int),
                         phase=np.clip(data["phase"], 0.0, 1.0), signal=data["signal"].astype(int),
                         value=data["value"], sd=data["sd"], time=data["time"], strike_sd=sd_t,
-                        contact=contact, contact_sd=contact_sd, note=note)
+                        contact=contact, contact_sd=contact_sd, note=note, strike_sd_measured=measured)
 
 
 def lagrange_weights(points, s) -> list:

@@ -326,12 +326,11 @@ def section_states(table: TrajectoryTable, phase: float = 0.5, width: float = 0.
         states[:, i:i + 2] = e[:, :2]
         cov[:, i:i + 2, i:i + 2] = c
         grad[:, i:i + 2] = e[:, 1:3]
-    # the strikes of the steps used (a run of complete steps where strikes are missing)
-    events = [ev for ev in sorted(table.events, key=lambda ev: ev["time"])
-              if obs.step_start[0] <= ev["time"] <= obs.step_end[-1]]
-    strike_sd = np.array([ev.get("time_sd", math.nan) for ev in events], dtype=float)
-    timing = bool(np.all(np.isfinite(strike_sd)))
+    # the strikes of the steps used (a run of complete steps where strikes are missing), where
+    # the events file gives their SDs
+    timing = obs.strike_sd_measured
     if timing:
+        strike_sd = obs.strike_sd
         var_t = ((1.0 - phase) * strike_sd[:-1]) ** 2 + (phase * strike_sd[1:]) ** 2
         cov += var_t[:, None, None] * grad[:, :, None] * grad[:, None, :]
     cols = [j for j in range(8) if set(_signals_for((STATE_NAMES[j],))) <= set(signals)]
