@@ -101,7 +101,7 @@ def _frames(tracker, result, true, truth, camera) -> list:
     """Per usable frame: corner errors (2 n,), their marker ids (n,), the pitch gains (2, 2 n),
     the actual pitch errors (2,), flags per leg, the residual ratio, the marker SDs and the true
     corners."""
-    from toywalk.tracking.angles import pooled_walker_sd, residual_ratio, walker_angles
+    from toywalk.tracking.angles import angle_jacobian, pooled_walker_sd, residual_ratio
 
     r_ramp = cv2.Rodrigues(np.asarray(camera.ramp_pose[0], float).reshape(3, 1))[0]
     marker_sd = result.noise["marker_pixel_sd"]
@@ -121,14 +121,8 @@ def _frames(tracker, result, true, truth, camera) -> list:
                 for j, i in enumerate(ids):
                     err.append(pixels[j] - true[k][int(i)][j % 4])  # corners in ArUco's order
                     labels.append(int(i))
-        base = walker_angles(r_ramp, pose)
-        jac = np.zeros((4, len(pose.names)))
-        for j, name in enumerate(pose.names):
-            if name in ("d1", "d3", "pitch_L", "pitch_R"):
-                step = np.zeros(len(pose.names))
-                step[j] = 1e-7
-                jac[:, j] = (walker_angles(r_ramp, pose.perturbed(step)) - base) / 1e-7
-        gain = np.nan_to_num(jac) @ (pose.normal @ pose.jacobian.T)
+        base, jac = angle_jacobian(r_ramp, pose)
+        gain = jac @ (pose.normal @ pose.jacobian.T)
         rows.append({"frame": k, "err": np.ravel(err), "labels": np.array(labels),
                      "gain": gain[2:], "pitch_error": (base - truth[k])[2:],
                      "n_flags": {f: pose.n_points.get(f, 0) // 4 for f in "LR"},

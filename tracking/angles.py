@@ -29,8 +29,8 @@ import numpy as np
 from ..model.kinematics import hip_axis_angles, pitch_angle, rotation
 from .joint import FEET, WalkerPose, rot_y
 
-__all__ = ["ANGLE_NAMES", "moderated_noise_scales", "motion_smoothed", "pooled_marker_sd", "pooled_pixel_sd",
-           "pooled_walker_sd", "residual_ratio", "walker_angles", "walker_angles_with_sd"]
+__all__ = ["ANGLE_NAMES", "angle_jacobian", "moderated_noise_scales", "motion_smoothed", "pooled_marker_sd",
+           "pooled_pixel_sd", "pooled_walker_sd", "residual_ratio", "walker_angles", "walker_angles_with_sd"]
 
 #: The order of :func:`walker_angles`' values.
 ANGLE_NAMES = ("lean", "steer", "pitch_left", "pitch_right")
@@ -61,6 +61,42 @@ def walker_angles(r_ramp: np.ndarray, pose: WalkerPose) -> np.ndarray:
     in_base = rotation(steer, lean, 0.0).T @ axle  # ~ Ry(the axle frame's pitch)
     pitches = [pitch_angle(in_base @ rot_y(pose.pitch[f])) if f in pose.seen else math.nan for f in FEET]
     return np.array([lean, steer, *pitches])
+
+
+#: The joint fit's parameters that turn the legs (:class:`toywalk.tracking.joint.WalkerPose`): the
+#: axle frame about its b1 and b3 axes and each leg's pitch; the hip point and width move none.
+_ANGULAR = ("d1", "d3", "pitch_L", "pitch_R")
+#: Forward-difference step (rad) of the angles' derivatives in the pose's and the ramp's rotations.
+_ANGLE_STEP = 1e-7
+
+
+def angle_jacobian(r_ramp: np.ndarray, pose: WalkerPose) -> tuple[np.ndarray, np.ndarray]:
+    """The angles of a joint leg pose and their derivatives in its parameters, by forward
+    differences (:data:`_ANGLE_STEP`) in the parameters that turn the legs.
+
+    Parameters
+    ----------
+    r_ramp : ndarray, shape (3, 3)
+        Rotation of the ramp frame into the camera frame.
+    pose : WalkerPose
+
+    Returns
+    -------
+    angles : ndarray, shape (4,)
+        :func:`walker_angles`.
+    jacobian : ndarray, shape (4, k)
+        d angles / d parameters, in the order of ``pose.names``; zero for the hip point and width
+        (which move no angle) and for a leg not seen.
+    """
+    base = walker_angles(r_ramp, pose)
+    h = _ANGLE_STEP
+    jac = np.zeros((4, len(pose.names)))
+    for j, name in enumerate(pose.names):
+        if name in _ANGULAR:
+            step = np.zeros(len(pose.names))
+            step[j] = h
+            jac[:, j] = (walker_angles(r_ramp, pose.perturbed(step)) - base) / h
+    return base, np.nan_to_num(jac)
 
 
 def walker_angles_with_sd(r_ramp: np.ndarray, pose: WalkerPose, pixel_sd: float, ramp_covariance=None,
@@ -97,15 +133,9 @@ def walker_angles_with_sd(r_ramp: np.ndarray, pose: WalkerPose, pixel_sd: float,
     values, sds : dict of str -> float
         :data:`ANGLE_NAMES` -> angle and SD (rad); NaN for the pitch of a leg not seen.
     """
-    base = walker_angles(r_ramp, pose)
-    angular = [j for j, name in enumerate(pose.names) if name in ("d1", "d3", "pitch_L", "pitch_R")]
-    h = 1e-7
-    jac = np.zeros((4, len(angular)))
-    for c, j in enumerate(angular):
-        step = np.zeros(len(pose.names))
-        step[j] = h
-        jac[:, c] = (walker_angles(r_ramp, pose.perturbed(step)) - base) / h
-    jac = np.nan_to_num(jac)
+    base, jac = angle_jacobian(r_ramp, pose)
+    angular = [j for j, name in enumerate(pose.names) if name in _ANGULAR]
+    jac = jac[:, angular]
     if scale is None:
         ratio, _ = residual_ratio(pose, pixel_sd, marker_sd)
         scale = max(1.0, ratio) if math.isfinite(ratio) else 1.0
@@ -115,8 +145,8 @@ def walker_angles_with_sd(r_ramp: np.ndarray, pose: WalkerPose, pixel_sd: float,
         turned = np.zeros((4, 3))
         for j in range(3):
             step = np.zeros(3)
-            step[j] = h
-            turned[:, j] = (walker_angles(r_ramp @ cv2.Rodrigues(step)[0], pose) - base) / h
+            step[j] = _ANGLE_STEP
+            turned[:, j] = (walker_angles(r_ramp @ cv2.Rodrigues(step)[0], pose) - base) / _ANGLE_STEP
         turned = np.nan_to_num(turned)
         var = var + np.einsum("ij,jk,ik->i", turned, np.asarray(ramp_covariance, float), turned)
     sd = np.sqrt(np.maximum(var, 0.0))
