@@ -108,10 +108,12 @@ def _check(result, truth, seen, hidden, camera, walker: str) -> dict:
     # lower flag alone is stated about 1.5 times as uncertain as it is. Per-flag pixel SDs and
     # each frame's moderated noise scale (tracking/angles.py) raised it from 0.36-0.51; what is
     # left is not the linearisation, the hip width or an edge-line corner covariance. Nor the
-    # frame scale's reach across legs: the cover spoils the other leg's flag where the two
-    # overlap and raises the scale (3-52), but that leg's corners carry 75 % of this pitch's
-    # variance (the hip its one flag hangs from) and moved it by 0.37 degree in such a frame,
-    # as the scaled SD says; each leg's or flag's own scale gives 0.45-0.46. In the other frames
+    # frame scale's reach across legs: near a heel strike the other leg's flag blurs (as much
+    # without the cover) and raises the scale (3-52), but that leg's corners carry 75 % of this
+    # pitch's variance (the hip its one flag hangs from) and moved it by 0.37 degree in such a
+    # frame, as the scaled SD says; each leg's or flag's own scale gives 0.45-0.46. Nor the cover
+    # (the same frames uncovered, refitted on the lower flag: the same errors), and the lower
+    # flag held out where both show gives 0.87-0.99, so no held-out calibration. In the other frames
     # the SDs overstate the errors unscaled too, 0.6-0.9 (benchmarks/TRACKING.md, "One marker on
     # a leg", with what was tried). Against the true corners (benchmarks/corner_errors.py) the
     # cause is correlated corner errors, within a flag and between flags, which cancel in a
