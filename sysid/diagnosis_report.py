@@ -138,6 +138,10 @@ def _markdown(d: Diagnosis) -> str:
     for name, t in d.residuals.tests.items():
         lines.append(f"| {name} | {math.degrees(t['rms']):.3f} | {t['pattern_p']:.3g} | "
                      f"{t['ljung_box_p']:.3g} | {t['runs_p']:.3g} |")
+    untested = [name for name, t in d.residuals.tests.items() if not math.isfinite(t["pattern_p"])]
+    lines += ["", f"Repeated pattern: {d.residuals.bins} phase bins a step"
+              + (f"; not tested ({', '.join(untested)}): fewer than three steps with a sample in "
+                 "every bin" if untested else "") + "."]
     lines += ["", "![residuals by phase](residuals_by_phase.png)", "", "## Gait features", "",
               "| feature | measured | model | z (base) | z (extended) |", "|---|---|---|---|---|"]
     for key, v in d.features.items():

@@ -1251,8 +1251,9 @@ def periodicity_test(table: TrajectoryTable, params: Params, free, *,
     elif appropriate:
         periodic = refit
         message = (f"the walk repeats itself: a free start lowers chi-square by {delta:.4g} on {dof} "
-                   f"degrees of freedom (p = {p_value:.2g}), but the periodic fit's residuals are the "
-                   f"same every step ({shown}): the model's misfit, not a walk off its cycle")
+                   f"degrees of freedom (p = {p_value:.2g}), but the periodic fit's residuals repeat "
+                   f"every step within the noise ({shown} >= {alpha:g}): the model's misfit, not a walk "
+                   "off its cycle")
     else:
         transient = refit
         message = (f"the walk is not on the model's limit cycle: a free start lowers chi-square by "

@@ -39,7 +39,8 @@ from toywalk.model.trajectory import SIGNALS
 from .measurement import Observations
 
 __all__ = ["COMPONENTS", "FEATURES", "SCATTER_ORDER", "ResidualReport", "feature_misfit", "finite_mean",
-           "missed_features", "residual_report", "scatter_noise", "step_dependence", "step_features"]
+           "missed_features", "phase_bins", "residual_report", "scatter_noise", "step_dependence",
+           "step_features"]
 
 #: Per-step gait features (:func:`step_features`), with their unit.
 FEATURES = {"duration": "s", "lean_range": "rad", "steer_range": "rad", "steer_mean": "rad",
@@ -49,8 +50,11 @@ FEATURES = {"duration": "s", "lean_range": "rad", "steer_range": "rad", "steer_m
 COMPONENTS = ("lean", "steer", "stance_pitch", "swing_pitch")
 #: Ljung-Box lags, in samples.
 _LAGS = 10
-#: Phase bins of the repeated-pattern test.
+#: Phase bins of the repeated-pattern test, at most (:func:`phase_bins`).
 _BINS = 10
+#: :func:`phase_bins` gives up at most this share of the steps that are complete in two bins, for
+#: finer bins.
+_STEPS_GIVEN_UP = 0.25
 #: Degree of the smooth curve whose range is a step's feature (:func:`step_features`).
 _SMOOTH_DEGREE = 6
 #: The lowest degree that still has a range to measure (a parabola's extreme within the step).
@@ -124,6 +128,28 @@ def _step_bin_means(obs: Observations, residuals: np.ndarray, sel: np.ndarray, b
         return np.where(count > 0, total / np.maximum(count, 1), np.nan)
 
 
+def phase_bins(obs: Observations) -> int:
+    """The phase bins of the repeated-pattern test for these observations: the most, up to
+    :data:`_BINS`, that leave every component at least three steps with a sample in every bin,
+    and at least three quarters (1 - :data:`_STEPS_GIVEN_UP`) of the steps complete in two bins.
+
+    A step with fewer samples than bins has an empty bin and drops out of the test (a
+    repeated-measures analysis needs every bin of a step): the stable toy filmed at 60 frames/s
+    has 6-7 samples a step, and with 10 bins none of its steps was complete, so the test was
+    never made (NaN). A short gap costs its step at fine bins too; so that a few gaps do not
+    coarsen the test, up to a quarter of the steps may be given up.
+    """
+    zero = np.zeros(obs.value.shape)
+    components = [sel for sel, _ in _components(obs, zero).values() if np.any(sel)]
+
+    def complete(bins: int) -> int:
+        return min((int(np.all(np.isfinite(_step_bin_means(obs, zero, sel, bins)), axis=1).sum())
+                    for sel in components), default=0)
+
+    floor = max(3, math.ceil((1.0 - _STEPS_GIVEN_UP) * complete(2)))
+    return next((b for b in range(_BINS, 1, -1) if complete(b) >= floor), _BINS)
+
+
 def _pattern(x: np.ndarray) -> tuple[float, float, float]:
     """Repeated-measures ANOVA of a steps-by-bins table ``x`` (n, p): the bins' F against the
     interaction, its Greenhouse-Geisser epsilon, and the corrected p-value; NaNs with fewer than
@@ -155,6 +181,8 @@ def _ljung_box(series: np.ndarray, lags: int) -> tuple[float, float]:
     if lags < 1:
         return math.nan, math.nan
     denom = float(x @ x)
+    if denom <= 0.0:  # a constant series: no correlation to measure
+        return math.nan, math.nan
     acf = np.array([float(x[k:] @ x[:-k]) / denom for k in range(1, lags + 1)])
     q = float(n * (n + 2) * np.sum(acf**2 / (n - np.arange(1, lags + 1))))
     return q, float(stats.chi2.sf(q, lags))
@@ -184,14 +212,15 @@ def residual_report(obs: Observations, residuals: np.ndarray, bins: int | None =
     residuals : ndarray, shape (n_obs,)
         Model minus measurement (rad).
     bins : int, optional
-        Phase bins (default :data:`_BINS`).
+        Phase bins (default :func:`phase_bins`: as many as the samples a step allow, at most
+        :data:`_BINS`).
     alpha : float
         Level of the "systematic" verdict over all signals together.
     """
     residuals = np.asarray(residuals, float)
     if residuals.shape != obs.value.shape:
         raise ValueError(f"residuals must have shape {obs.value.shape}, got {residuals.shape}")
-    bins = _BINS if bins is None else int(bins)
+    bins = phase_bins(obs) if bins is None else int(bins)
     tests, means, ses, pattern_p = {}, {}, {}, {}
     for name, (sel, values) in _components(obs, residuals).items():
         if not np.any(sel):
