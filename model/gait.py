@@ -25,7 +25,15 @@ import numpy as np
 
 from .effects import EFFECTS
 from .parameters import Params
-from .walker import STATE_NAMES, Step, StepFailure, SwingClearance, Walker, is_planar_symmetric
+from .walker import (
+    CLEARANCE_RESOLUTION,
+    STATE_NAMES,
+    Step,
+    StepFailure,
+    SwingClearance,
+    Walker,
+    is_planar_symmetric,
+)
 
 __all__ = ["Gait", "GaitNotFound", "Stability", "continue_gait", "find_gait", "planar_gaits",
            "planar_reduction", "solve_fixed_point"]
@@ -157,6 +165,14 @@ class Gait(Stability):
         return self.swing_clearance.minimum
 
     @property
+    def swing_foot(self) -> str:
+        """``"clears"`` the ramp over its whole swing, ``"touches"`` it (a clearance within
+        :data:`~toywalk.model.walker.CLEARANCE_RESOLUTION` leg lengths of 0: the feet of a walker
+        with w = 0 pass through each other at the ramp) or goes ``"below"`` it."""
+        tol = CLEARANCE_RESOLUTION * self.params.leg_length
+        return "clears" if self.clearance > tol else ("touches" if self.clearance >= -tol else "below")
+
+    @property
     def lean_amplitude(self) -> float:
         """Half the peak-to-peak lean psi over a stride, in the physical frame (rad): max |psi|
         for a step-periodic gait, about the mean lean for a stride-periodic one."""
@@ -219,6 +235,7 @@ class Gait(Stability):
             "scuffs": sum(s.scuffs for s in self.steps),
             "clearance": self.clearance,
             "swing_clearance": self.swing_clearance.as_dict(),
+            "swing_foot": self.swing_foot,
             "clearance_after_passing": min(s.clearance for s in self.steps),
             "collision_loss": [s.collision_loss for s in self.steps],
             "residual": self.residual,

@@ -23,7 +23,8 @@ from .effects import CONTINUOUS, EFFECTS
 from .engine import SCAN, engine
 from .parameters import N_PARAMS, Params
 
-__all__ = ["STATE_NAMES", "Cycle", "Step", "StepFailure", "SwingClearance", "Walker"]
+__all__ = ["CLEARANCE_RESOLUTION", "STATE_NAMES", "Cycle", "Step", "StepFailure", "SwingClearance",
+           "Walker"]
 
 #: Public state order (model.md section 1).
 STATE_NAMES = (
@@ -39,6 +40,10 @@ _GUARD_MAXIT = 30
 # length. The clearance is then off by about this much times dh/d(ahead) (order 1): 1e-10 of a
 # leg is far below any clearance worth reporting, and two or three iterations reach it.
 _PASS_TOL = 1e-10
+#: A clearance within this many leg lengths of 0 is a touch, not a clearance or a dip into the ramp:
+#: ten times the passing instant's tolerance (_PASS_TOL), which bounds the clearance's error. The
+#: seed's point feet (w = 0) pass through each other at h = -1.1e-14 m, round-off of 0.
+CLEARANCE_RESOLUTION = 10 * _PASS_TOL
 # The swing foot must start at least this far (relative to the leg length) behind the stance foot:
 # legs together (a zero-length step) is a trivial fixed point of the step map, not a gait.
 _START_GAP = 1e-6

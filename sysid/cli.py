@@ -108,9 +108,10 @@ def _print_gait(report: dict, out=None) -> None:
     print(f"swing clearance   {report['clearance']:.4g} m over the whole swing (lowest at "
           f"{swing['phase']:.2f} of the step, {where}); {report['clearance_after_passing']:.4g} m "
           f"after the legs pass; highest {swing['apex']:.4g} m", file=out)
+    contact = {"clears": "", "touches": "; the swing foot grazes the ramp (a clearance of 0 to "
+               "round-off)", "below": "; the swing foot goes below the ramp"}[report["swing_foot"]]
     print(f"scuffs per step   {report['scuffs']} (swing-foot touches while the legs pass, which the "
-          f"model ignores){'' if report['clearance'] > 0 else '; the swing foot goes below the ramp'}",
-          file=out)
+          f"model ignores){contact}", file=out)
     print(f"can stand         {report['can_stand']}: {report['standing']}", file=out)
 
 

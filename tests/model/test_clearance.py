@@ -3,6 +3,7 @@ slow reference (the height sampled point by point on a 64x finer grid), independ
 integration grid, for gaits, continuation points and simulations, and as a constraint of the gait
 search and of the design searches (docs/gaits.md section 4)."""
 
+import dataclasses
 import json
 import math
 
@@ -102,6 +103,12 @@ def test_feet_on_one_line_cannot_clear():
     assert abs(swing.at_passing) < 1e-10 * params.leg_length
     assert swing.minimum <= swing.at_passing
     assert swing.beside < 1e-10 * params.leg_length  # not beside: in line
+    # said as a touch, not as a foot below the ramp (toywalk gait said "goes below" of -1.1e-14 m);
+    # a dip of a millionth of a leg, far beyond round-off, is below
+    assert gait.swing_foot == "touches"
+    dipped = dataclasses.replace(gait, steps=[dataclasses.replace(
+        s, swing=dataclasses.replace(s.swing, minimum=-1e-6 * params.leg_length)) for s in gait.steps])
+    assert dipped.swing_foot == "below"
 
 
 def test_every_gait_continuation_point_and_simulation_reports_it(stable_gait):
@@ -181,6 +188,7 @@ def test_the_clearing_walker_cannot_stand_walks_stably_and_clears(clearing_gait)
     1 mm asked), lowest as the legs pass, with no dip and no scuff."""
     gait = clearing_gait
     params = gait.params
+    assert gait.swing_foot == "clears"
     assert gait.residual < 1e-10  # a gait (Newton's tolerance, model/gait.py)
     report = can_stand(params)
     assert not report.can_stand and not report.can_stand_level
