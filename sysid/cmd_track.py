@@ -45,9 +45,58 @@ def register(subparsers) -> None:
                         "--params, else estimated from the video")
     p.add_argument("--params", default=None,
                    help="parameter TOML file of the walker filmed (only its hip_width is used)")
+    p.add_argument("--exposure", default=None, metavar="SECONDS",
+                   help="how long the shutter was open for each frame, as the camera states it "
+                        "(1/150, or 0.0067 s): written to M.json as exposure_s, so that fit, sample "
+                        "and diagnose read the model's mean over it (default: not stated, each frame "
+                        "read at its time)")
     p.add_argument("--full-search", action="store_true",
                    help="search the whole frame every time instead of around predicted markers (slower)")
     p.set_defaults(func=cmd_track)
+
+
+def _exposure(text: str | None) -> float | None:
+    """``--exposure``: seconds, written as a number or as the fraction a camera shows (1/150)."""
+    from toywalk.sysid.cli import CommandError
+
+    if text is None:
+        return None
+    num, slash, den = text.partition("/")
+    try:
+        value = float(num) / float(den) if slash else float(text)
+    except (ValueError, ZeroDivisionError) as err:
+        raise CommandError(f"--exposure must be seconds, e.g. 1/150 or 0.0067, got {text!r}") from err
+    if not (math.isfinite(value) and value > 0):
+        raise CommandError(f"--exposure must be a positive time in seconds, got {text!r}")
+    return value
+
+
+def _render_exposure(video: Path) -> tuple[float | None, str | None]:
+    """The shutter time of a video ``render`` made, from the metadata it wrote beside it
+    (``V.json``: the shutter open ``exposure`` of a frame interval where frames are blurred, a
+    sharp frame an instant): (seconds, where from), or (None, None) for any other video."""
+    import json
+
+    from toywalk.tracking.render import output_paths
+
+    path = output_paths(video)["metadata"]
+    try:
+        meta = json.loads(path.read_text())
+        options = meta["options"]
+        fraction, fps = float(options["exposure"]), float(options["fps"])
+        blurred = meta["motion_blur"] is not None
+    except (OSError, ValueError, KeyError, TypeError):
+        return None, None
+    if not (math.isfinite(fraction) and math.isfinite(fps) and 0 <= fraction <= 1 and fps > 0):
+        return None, None
+    return (fraction / fps if blurred else 0.0), f"{path.name}, written by render beside the video"
+
+
+def _seconds(value: float) -> str:
+    """A shutter time as a camera shows it: 1/150 s, else seconds."""
+    if value > 0 and abs(1 / value - round(1 / value)) < 1e-6 * (1 / value):
+        return f"1/{round(1 / value)} s"
+    return f"{value:.4g} s"
 
 
 def _sha256(path: Path) -> str:
@@ -109,6 +158,16 @@ def cmd_track(args) -> int:
             hip_width = float(load_params(args.params).hip_width)
         except (OSError, ValueError) as err:
             raise CommandError(f"cannot read --params {args.params}: {str(err).splitlines()[0]}") from err
+    exposure, exposure_from = _exposure(args.exposure), "--exposure"
+    if exposure is None:
+        exposure, exposure_from = _render_exposure(video)
+    else:
+        from toywalk.tracking.video import declared_fps
+
+        fps = declared_fps(video)
+        if fps and exposure > (1 + 1e-9) / fps:  # checked before tracking writes the overlay
+            raise CommandError(f"--exposure {args.exposure} is longer than the frame interval (1/{fps:.4g} "
+                               "s): a shutter cannot stay open beyond it")
     camera_path = _default(args.camera, "camera", "default.json")
     markers_path, markers_from = _layout_path(args.markers, video)
     try:
@@ -156,6 +215,10 @@ def cmd_track(args) -> int:
                          "breakpoint fit; the leading leg strikes; contact position unknown",
         "software": _version(),
     }
+    if exposure is not None:
+        metadata["exposure_s"] = exposure
+        metadata["exposure"] = (f"the shutter open for exposure_s seconds centred on each frame's time "
+                                f"({exposure_from}): each sample is the angles' mean over it")
     smooth_path = out.with_name(out.stem + ".smoothed.csv")
     raw_meta = {**metadata, "signals": "raw per-frame estimates",
                 "smoothed_copy": smooth_path.name}
@@ -171,7 +234,9 @@ def cmd_track(args) -> int:
     both = sum(1 for i in range(n) if not (math.isnan(result.raw["pitch_left"][i])
                                            or math.isnan(result.raw["pitch_right"][i])))
     print(f"tracked {n} frames ({both} with both legs), {len(result.events)} heel strikes; "
-          f"ramp pose: {result.ramp['source']}; markers: {markers_path.name} ({markers_from}) -> {out}")
+          f"ramp pose: {result.ramp['source']}; markers: {markers_path.name} ({markers_from}); "
+          + (f"exposure {_seconds(exposure)} ({exposure_from})" if exposure is not None else
+             "exposure not stated, each frame read at its time (--exposure)") + f" -> {out}")
     if n and (both < 0.9 * n or len(result.events) < 3):
         # The files are written (a user may still want the angles), but fit and diagnose need
         # both legs and at least three strikes: say so now, with the likely cause.

@@ -191,6 +191,9 @@ class FitResult:
         that ends far above it has found another minimum of the time offset); None otherwise.
     seconds : float
         Wall time of the fit (s).
+    exposure_s : float
+        The shutter time each sample was read over (s; the trajectory's ``exposure_s``, 0: at its
+        time; :func:`toywalk.sysid.measurement.shutter_reads`).
     """
 
     free: list
@@ -225,6 +228,7 @@ class FitResult:
     aligned_rms: dict | None = None
     n_w: int = dataclasses.field(repr=False, default=0)
     seconds: float = 0.0
+    exposure_s: float = 0.0
 
     def to_json(self) -> dict:
         """JSON-ready dictionary (pipeline.md's fit file: estimates, std, covariance, ...)."""
@@ -235,7 +239,7 @@ class FitResult:
             "names": self.names, "covariance": self.covariance.tolist(),
             "correlation": self.correlation.tolist(),
             "noise_sd": self.noise_sd, "noise_source": self.noise_source,
-            "contact_source": self.contact_source,
+            "contact_source": self.contact_source, "exposure_s": self.exposure_s,
             "residual_rms": self.residual_rms, "residual_rms_by_phase": self.residual_rms_by_phase,
             "chi2": self.chi2, "n_residuals": self.n_residuals,
             "reduced_chi2": self.chi2 / max(self.n_residuals - len(self.names) - self.start_dof, 1),
@@ -658,7 +662,7 @@ class _Problem:
         # time offset and the step durations has other minima (measured: a start at the Tinkertoy's
         # foot radius ended at chi-square 1.4e6 instead of 484); aligned step by step it has not,
         # and from its solution the second stage only refines.
-        a_op = tm.at_phases(obs.phase)
+        a_op = tm.at_phases()
         model_aligned = ca.mtimes(ca.DM(sp.csc_matrix(a_op)), w) + ca.mtimes(ca.DM(b_op), off)
         r_ang_aligned = (model_aligned - ca.DM(obs.value)) * inv_sd
         per_step = ca.vertcat(*[w[prob.duration_index(int(j))] for j in model_step])
@@ -986,7 +990,7 @@ class _Problem:
             model="periodic" if prob.periodic else "transient", initial_state=start, sigma=sigma,
             start_dof=len(self.start_free), contact_source=contact_source, residuals=res,
             model_durations=durations, options=dict(self.options), n_w=self.n_w,
-            aligned_rms=aligned_rms)
+            aligned_rms=aligned_rms, exposure_s=self.obs.exposure)
 
     def _gait(self, x: np.ndarray, fitted: Params, notes: list) -> dict:
         """The fitted walker's gait: the periodic fit's own, or for a transient the fitted

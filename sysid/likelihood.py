@@ -38,7 +38,7 @@ from toywalk.model.parameters import ParameterError, Params
 from toywalk.model.walker import Walker
 
 from .fit import with_values
-from .measurement import Observations, components, offsets_design, path, step_counts
+from .measurement import Observations, components, offsets_design, path, shutter_reads, step_counts
 
 __all__ = ["NO_GAIT", "OK", "OUTSIDE_PRIOR", "GaitCurves", "LogPosterior", "Reading", "model_angles"]
 
@@ -59,12 +59,13 @@ class Reading:
     gait, built once per posterior rather than per evaluation."""
 
     def __init__(self, obs: Observations, period: int, planar: bool):
-        model_step, self.component, self.sign = components(obs, period, planar)
-        self.before, _, self.strikes_before = step_counts(obs, period)
+        reads, self.average = shutter_reads(obs)  # three reads a sample with the shutter open
+        model_step, self.component, self.sign = components(reads, period, planar)
+        self.before, _, self.strikes_before = step_counts(reads, period)
         self.rows = [np.flatnonzero((model_step == j) & (self.component >= 0)) for j in range(period)]
-        self.t_rel = obs.time - obs.step_start[0]
+        self.t_rel = reads.time - obs.step_start[0]
         self.strike_rel = obs.strikes - obs.step_start[0]
-        self.n_obs = len(obs.value)
+        self.n_obs = len(reads.value)
 
 
 class GaitCurves:
@@ -91,6 +92,8 @@ class GaitCurves:
             if len(rows):
                 states = spline(local[rows])
                 out[rows] = r.sign[rows] * states[np.arange(len(rows)), r.component[rows]]
+        if r.average is not None:
+            out = r.average @ out
         return out, time_offset + r.strikes_before @ self.durations
 
 

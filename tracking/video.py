@@ -24,7 +24,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-__all__ = ["TIMESTAMP_POLICIES", "FrameSource", "TrackError", "open_video", "timestamp_summary"]
+__all__ = ["TIMESTAMP_POLICIES", "FrameSource", "TrackError", "declared_fps", "open_video",
+           "timestamp_summary"]
 
 #: Timestamp policies (module docstring) and what each means, for the trajectory's metadata.
 TIMESTAMP_POLICIES = {
@@ -214,6 +215,17 @@ def _check_container(path: Path) -> None:
     if not kind[1](head):
         raise TrackError(f"cannot open video {path}: not an {kind[0]} file (its first bytes are not "
                          f"an {kind[0]} header): a mislabelled file, or a video cut at its start")
+
+
+def declared_fps(path: str | Path) -> float:
+    """The frame rate a video's container declares (frames/s; 0 where it declares none or cannot
+    be opened), without decoding a frame."""
+    cap = cv2.VideoCapture(str(path))
+    try:
+        fps = float(cap.get(cv2.CAP_PROP_FPS) or 0.0) if cap.isOpened() else 0.0
+    finally:
+        cap.release()
+    return fps if math.isfinite(fps) and fps > 0 else 0.0
 
 
 def open_video(path: str | Path, *, decoder_threads: int | None = None) -> FrameSource:

@@ -334,6 +334,41 @@ def test_bad_marker_layout(command, case, walk, video, tmp_path, capfd):
     _refused_and_untouched(capfd, tmp_path, argv + _outputs(tmp_path, command), words)
 
 
+@pytest.mark.parametrize(("value", "words"), [
+    ("abc", ["--exposure", "seconds", "'abc'"]), ("0", ["--exposure", "positive"]),
+    ("=-1/150", ["--exposure", "positive"]), ("1/0", ["--exposure", "seconds"]),
+    ("nan", ["--exposure", "positive"]),
+    ("1/10", ["--exposure 1/10", "longer than the frame interval"]),  # the video is at 30 frames/s
+])
+def test_bad_exposure(value, words, video, tmp_path, capfd):
+    """``track --exposure`` that is no shutter time, or one longer than a frame: one line naming
+    it, nothing written."""
+    # a value starting with '-' goes as --exposure=VALUE, else argparse takes it for an option
+    argv = ["track", video, "--camera", video.with_suffix(".camera.json"), "--markers",
+            video.with_suffix(".markers.json")]
+    argv += [f"--exposure{value}"] if value.startswith("=") else ["--exposure", value]
+    _refused_and_untouched(capfd, tmp_path, argv + _outputs(tmp_path, "track"), words)
+
+
+def test_track_states_the_exposure(video, tmp_path, capfd):
+    """The shutter time goes into M.json as ``exposure_s`` (what the fit reads) and into the summary
+    line: from ``--exposure`` as given, from the metadata render wrote beside its video (0.4 of a
+    frame at 30 frames/s by default), and not stated for a video without one."""
+    base = ["track", video, "--camera", video.with_suffix(".camera.json"), "--markers",
+            video.with_suffix(".markers.json")]
+    for extra, seconds, said in ((["--exposure", "1/100"], 0.01, "exposure 1/100 s (--exposure)"),
+                                 ([], 0.4 / 30, "exposure 1/75 s (tiny.json, written by render")):
+        out = tmp_path / f"m{len(extra)}.csv"
+        outcome = toywalk(capfd, *base, *extra, "--out", out)
+        assert outcome.code == 0 and said in outcome.out, outcome.out
+        assert json.loads(out.with_suffix(".json").read_text())["exposure_s"] == pytest.approx(seconds)
+    alone = tmp_path / "alone.mp4"
+    alone.write_bytes(video.read_bytes())  # the same frames, no render metadata beside them
+    outcome = toywalk(capfd, *base[:1], alone, *base[2:], "--out", tmp_path / "alone.csv")
+    assert outcome.code == 0 and "exposure not stated" in outcome.out, outcome.out
+    assert "exposure_s" not in json.loads((tmp_path / "alone.json").read_text())
+
+
 # --- videos and images ----------------------------------------------------------------------------
 
 def _png() -> bytes:
