@@ -36,6 +36,14 @@ def output_path(value: str, suffixes: tuple[str, ...], option: str = "--out") ->
     return out
 
 
+def refuse_overwrite(outputs, inputs) -> None:
+    """:class:`CommandError` (one line) when an output path is one of the input paths (None: none)."""
+    given = {Path(p).resolve() for p in inputs if p is not None}
+    clash = [p for p in outputs if p is not None and Path(p).resolve() in given]
+    if clash:
+        raise CommandError(f"the output would overwrite the input {clash[0]}; choose another --out name")
+
+
 def _load(path: str):
     from toywalk.model.parameters import ParameterError, load_params
 

@@ -61,7 +61,7 @@ def cmd_render(args) -> int:
     import numpy as np
     from toywalk.model.parameters import ParameterError, load_params
     from toywalk.model.trajectory import read_trajectory, trajectory_paths
-    from toywalk.sysid.cli import CommandError, output_path
+    from toywalk.sysid.cli import CommandError, output_path, refuse_overwrite
     from toywalk.tracking.camera import CameraError, load_camera
     from toywalk.tracking.markers import LayoutError, default_layout, load_layout
     from toywalk.tracking.render import RenderError, RenderOptions, default_filming, output_paths, render
@@ -70,13 +70,8 @@ def cmd_render(args) -> int:
     traj_path = Path(args.trajectory)
     if traj_path.suffix != ".csv":
         raise CommandError(f"the trajectory must be a .csv file, got {traj_path}")
-    inputs = {p.resolve() for p in trajectory_paths(traj_path)}
-    for extra in (args.params, args.camera, args.markers):
-        if extra:
-            inputs.add(Path(extra).resolve())
-    clash = [p for p in output_paths(out).values() if p.resolve() in inputs]
-    if clash:
-        raise CommandError(f"the output would overwrite the input {clash[0]}; choose another --out name")
+    refuse_overwrite(output_paths(out).values(),
+                     [*trajectory_paths(traj_path), args.params, args.camera, args.markers])
     if args.noise not in (0, 1, 2, 3):
         raise CommandError(f"--noise must be 0, 1, 2 or 3, got {args.noise}")
     if not (math.isfinite(args.fps) and 0 < args.fps <= 1000):

@@ -134,7 +134,7 @@ def _layout_path(given, video: Path) -> tuple[Path, str]:
 
 def cmd_track(args) -> int:
     from toywalk.model.trajectory import trajectory_paths, write_trajectory
-    from toywalk.sysid.cli import CommandError, _version, output_path
+    from toywalk.sysid.cli import CommandError, _version, output_path, refuse_overwrite
     from toywalk.tracking.camera import CameraError, load_camera
     from toywalk.tracking.markers import LayoutError, load_layout
     from toywalk.tracking.ramp import RampPoseError
@@ -148,6 +148,13 @@ def cmd_track(args) -> int:
     if not video.is_file():
         raise CommandError(f"not a video file: {video}" if video.exists() else
                            f"video file not found: {video}")
+    from toywalk.tracking.render import output_paths
+
+    smooth_path = out.with_name(out.stem + ".smoothed.csv")
+    # the video's own files too (the metadata render wrote beside it holds its shutter time)
+    refuse_overwrite([*trajectory_paths(out), *trajectory_paths(smooth_path), overlay],
+                     [p for p in (*output_paths(video).values(), args.camera, args.markers, args.params)
+                      if p is not None and Path(p).exists()])
     hip_width = args.hip_width
     if hip_width is not None and not (math.isfinite(hip_width) and hip_width >= 0):
         raise CommandError(f"--hip-width must be a length >= 0 (m), got {hip_width}")
@@ -219,7 +226,6 @@ def cmd_track(args) -> int:
         metadata["exposure_s"] = exposure
         metadata["exposure"] = (f"the shutter open for exposure_s seconds centred on each frame's time "
                                 f"({exposure_from}): each sample is the angles' mean over it")
-    smooth_path = out.with_name(out.stem + ".smoothed.csv")
     raw_meta = {**metadata, "signals": "raw per-frame estimates",
                 "smoothed_copy": smooth_path.name}
     smooth_meta = {**metadata, "signals": f"smoothed: {result.smoothing}, over stretches without gaps "

@@ -480,7 +480,8 @@ def path(obs: Observations, phases: int, periodic: bool = True) -> Path:
 class Timing:
     """The model's values of the observations as functions of the BVP's unknowns ``w`` and the
     time offset (module docstring). Shapes: ``n_obs`` observations, ``n_w`` BVP unknowns, ``n_r``
-    reads of the model (``n_obs``, or three a sample with the shutter open: :func:`shutter_reads`).
+    reads of the model (``n_obs``; with the shutter open three a sample, six where a heel strike
+    splits its shutter: :func:`shutter_reads`).
 
     Attributes
     ----------

@@ -506,7 +506,7 @@ def _periodic_refine(t, pl, pr, ok, events, sigma, degree=4, iterations=20, min_
         return np.sum((a @ (np.linalg.pinv(a) @ y) - y) ** 2, axis=(1, 2))
 
     sds = np.array([e.time_sd for e in events])
-    templates = {}  # foot -> (coefficients, residual SD of its strikes' samples)
+    templates = {}  # foot -> (coefficients, residual SD of its strikes' samples, common shift's SD)
     for foot in ("L", "R"):
         mine = np.flatnonzero(feet == foot)
         if len(mine) < min_per_foot:
@@ -588,7 +588,7 @@ def _missed_strikes(t, pitch, ok, events, templates, basis, step, long_gaps,
     for a, b in zip(events[:-1], events[1:], strict=True):
         foot = "R" if a.foot == "L" else "L"
         if (a.foot != b.foot or foot not in templates or not 1.5 * step < b.time - a.time < 2.5 * step
-                or any(a.time < end and start < b.time for start, end in long_gaps)):
+                or not _seen_between(a, b, long_gaps)):
             continue
         coefs, resid_sd, common_sd = templates[foot]
         mid = 0.5 * (a.time + b.time)
@@ -632,6 +632,12 @@ def _like_the_others(events: list, kinks, min_cosine: float = 0.5) -> list:
     return [e for e, c in zip(events, cosine, strict=True) if c >= min_cosine]
 
 
+def _seen_between(a: HeelStrike, b: HeelStrike, long_gaps) -> bool:
+    """Whether the frames between strikes ``a`` and ``b`` were seen: no long gap ((start, end)
+    times) overlaps them, where a strike of the other foot could have gone unseen."""
+    return not any(a.time < end and start < b.time for start, end in long_gaps)
+
+
 def _alternating(events: list, long_gaps=()) -> list:
     """Drop the weaker of two strikes that cannot both be real.
 
@@ -642,16 +648,12 @@ def _alternating(events: list, long_gaps=()) -> list:
     strength ``z`` goes.
     """
     events = sorted(events, key=lambda e: e.time)
-
-    def seen(a, b):
-        return not any(a.time < end and start < b.time for start, end in long_gaps)
-
     while len(events) >= 3:
         step = float(np.median(np.diff([e.time for e in events])))
         worst = None
         for a, b in zip(events[:-1], events[1:], strict=True):
             gap = b.time - a.time
-            if gap < 0.5 * step or (a.foot == b.foot and gap < 1.5 * step and seen(a, b)):
+            if gap < 0.5 * step or (a.foot == b.foot and gap < 1.5 * step and _seen_between(a, b, long_gaps)):
                 weaker = a if a.z < b.z else b
                 if worst is None or weaker.z < worst.z:
                     worst = weaker

@@ -350,6 +350,20 @@ def test_bad_exposure(value, words, video, tmp_path, capfd):
     _refused_and_untouched(capfd, tmp_path, argv + _outputs(tmp_path, "track"), words)
 
 
+def test_track_does_not_overwrite_the_videos_own_files(video, tmp_path, capfd):
+    """``track V.mp4 --out V.csv`` would write its metadata over the V.json render wrote beside the
+    video (which holds the shutter time ``track`` reads): refused in one line, nothing written; as
+    is an overlay over the video itself."""
+    copy = tmp_path / "v.mp4"
+    for name in ("tiny.mp4", "tiny.json", "tiny.camera.json", "tiny.markers.json"):
+        (tmp_path / name.replace("tiny", "v")).write_bytes((video.parent / name).read_bytes())
+    for extra in (["--out", copy.with_suffix(".csv")], ["--out", tmp_path / "m.csv", "--overlay", copy]):
+        before = snapshot(tmp_path)
+        outcome = toywalk(capfd, "track", copy, *extra)
+        assert_refused(outcome, "would overwrite the input", "choose another --out name")
+        assert snapshot(tmp_path) == before
+
+
 def test_track_states_the_exposure(video, tmp_path, capfd):
     """The shutter time goes into M.json as ``exposure_s`` (what the fit reads) and into the summary
     line: from ``--exposure`` as given, from the metadata render wrote beside its video (0.4 of a
