@@ -891,7 +891,7 @@ class _Problem:
             if np.max(np.abs(g)) <= _NEWTON_TOL:
                 return w
             g_w = _sparse(_equality_jacobians(self.prob)(w, p)[0]).tocsc()
-            w[dep] -= splu(g_w[:, dep].tocsc()).solve(g)
+            w[dep] -= splu(g_w[:, dep]).solve(g)
         return None
 
     def fd_check(self, x: np.ndarray, sigma: np.ndarray, jac: np.ndarray) -> dict:

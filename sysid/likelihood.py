@@ -65,7 +65,7 @@ class Reading:
         self.rows = [np.flatnonzero((model_step == j) & (self.component >= 0)) for j in range(period)]
         self.t_rel = reads.time - obs.step_start[0]
         self.strike_rel = obs.strikes - obs.step_start[0]
-        self.n_obs = len(reads.value)
+        self.n_reads = len(reads.value)  # the samples' own count where the shutter is not stated
 
 
 class GaitCurves:
@@ -87,7 +87,7 @@ class GaitCurves:
         and the model's strike times from the first measured one (s)."""
         r = self.reading
         local = r.t_rel - (time_offset + r.before @ self.durations)
-        out = np.zeros(r.n_obs)
+        out = np.zeros(r.n_reads)
         for rows, spline in zip(r.rows, self.splines, strict=True):
             if len(rows):
                 states = spline(local[rows])
