@@ -5,7 +5,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test test-fast bench lint clean
+.PHONY: demo test test-fast bench lint clean libraries
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -13,20 +13,29 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install --quiet -e '.[test]'
 	touch $(STAMP)
 
-demo: $(STAMP)
+# The compiled libraries, built side by side before anything needs them: processes started
+# together on an empty cache would each compile all of them (about 2 minutes each on 2 cores,
+# against 1 minute shared out; a few seconds once cached).
+libraries: $(STAMP)
+	$(PY) -m toywalk.model.compiled --jobs 2
+
+demo: libraries
 	$(VENV)/bin/toywalk demo
 
 # Two processes, one per core (the tests are single-threaded CasADi and NumPy work); a file's
-# tests stay in one process so that its module fixtures are built once.
-test: $(STAMP)
-	$(PY) -m pytest -q -n 2 --dist loadfile --durations=25
+# tests stay in one process so that its module fixtures are built once. One BLAS thread each:
+# with the cores taken, OpenBLAS's threads only wait (a three-walk diagnosis, one process: 95 s
+# of CPU with them, 72 s without; 2026-11-27).
+ONE_THREAD := OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 MKL_NUM_THREADS=1
+test: libraries
+	$(ONE_THREAD) $(PY) -m pytest -q -n 2 --dist loadfile --durations=25
 
 # The suite less its cases marked slow (end-to-end analyses, rendered videos): a quick check while
 # working; `make test` (and CI) runs everything.
-test-fast: $(STAMP)
-	$(PY) -m pytest -q -n 2 --dist loadfile -m "not slow"
+test-fast: libraries
+	$(ONE_THREAD) $(PY) -m pytest -q -n 2 --dist loadfile -m "not slow"
 
-bench: $(STAMP)
+bench: libraries
 	$(PY) benchmarks/run_all.py
 	$(PY) benchmarks/track_accuracy.py
 	$(PY) benchmarks/marker_layouts.py

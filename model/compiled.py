@@ -17,11 +17,14 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import time
+from concurrent.futures import ProcessPoolExecutor
+from multiprocessing import get_context
 from pathlib import Path
 
 import casadi as ca
 
-__all__ = ["cache_dir", "compile_functions", "compile_with_derivatives"]
+__all__ = ["LIBRARIES", "build_libraries", "cache_dir", "compile_functions", "compile_with_derivatives"]
 
 # -O1, not -O2: gcc 12 compiles the 3D walker's library in 43 s against 75 s (planar 9 s against
 # 17 s), and its functions run as fast (a step 35.8 against 36.1 us, the final state's Jacobian
@@ -137,3 +140,65 @@ def _library(name: str, functions: list[ca.Function], verbose: bool,
                 return None
             os.replace(out, lib)
     return lib
+
+
+#: Every library the toolkit compiles, as ``(name, builder, args)`` with the builder a function
+#: of ``toywalk.model.engine`` or ``toywalk.model.collocation``, longest to compile first:
+#: seconds on this project's 2-core machine with gcc 12 at -O1 (2026-11-27), the walker's
+#: engine 49 and 10 (3D, planar), the fit's collocation intervals 38 and 22 (3D, degrees 4 and
+#: 3 of the periodic and transient fits), about 1 each planar.
+LIBRARIES = (
+    ("3D walker", "engine", (False,)),
+    ("3D collocation interval, degree 4", "native_interval", (False, 4)),
+    ("3D collocation interval, degree 3", "native_interval", (False, 3)),
+    ("planar walker", "engine", (True,)),
+    ("planar collocation interval, degree 4", "native_interval", (True, 4)),
+    ("planar collocation interval, degree 3", "native_interval", (True, 3)),
+)
+
+
+def _build(entry: tuple[str, str, tuple]) -> float:
+    """Build one of :data:`LIBRARIES` (compiling it if its library is not cached); seconds taken."""
+    from . import collocation, engine  # here: both import this module
+
+    _, builder, args = entry
+    start = time.perf_counter()
+    getattr(engine if builder == "engine" else collocation, builder)(*args)
+    return time.perf_counter() - start
+
+
+def build_libraries(jobs: int = 2) -> dict[str, float]:
+    """Compile every library in :data:`LIBRARIES` that the cache lacks, ``jobs`` at a time.
+
+    Each process that needs a library compiles it where it is missing, so processes started
+    together on an empty cache (the test suite's workers, a sampler's pool) each compile all of
+    them, one after another. Built first, ``jobs`` processes share them out: on 2 cores about
+    60 s against the 120 s each process would otherwise spend. With every library cached this
+    only loads them (a few seconds: the functions' code is generated and hashed).
+
+    Parameters
+    ----------
+    jobs : int
+        Processes that compile at once (one per core).
+
+    Returns
+    -------
+    dict of str to float
+        Seconds each library took in its process (load or compile).
+    """
+    if jobs < 1:
+        raise ValueError(f"jobs must be at least 1, got {jobs}")
+    if jobs == 1 or _compiler() is None:
+        return {entry[0]: _build(entry) for entry in LIBRARIES}
+    with ProcessPoolExecutor(jobs, mp_context=get_context("spawn")) as pool:
+        return dict(zip((entry[0] for entry in LIBRARIES), pool.map(_build, LIBRARIES), strict=True))
+
+
+if __name__ == "__main__":
+    import argparse
+
+    parser = argparse.ArgumentParser(prog="python -m toywalk.model.compiled",
+                                     description="Compile every library the toolkit uses, once.")
+    parser.add_argument("--jobs", type=int, default=2, help="processes compiling at once")
+    for library, seconds in build_libraries(parser.parse_args().jobs).items():
+        print(f"{library}: {seconds:.1f} s")
