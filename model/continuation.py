@@ -227,7 +227,7 @@ def continue_branch(params: Params, name: str, start: float, end: float, max_poi
     events: list[BranchEvent] = []
     y = np.concatenate([gait.fixed_point[active], [start / scale]])
     tangent = None
-    status, message = "max_points", f"stopped after {max_points} points"
+    status, message = "max_points", ""  # the message says where, once stopped
 
     def residual(yv):
         value = yv[-1] * scale
@@ -330,6 +330,10 @@ def continue_branch(params: Params, name: str, start: float, end: float, max_poi
             status, message = "turned back", f"the branch returned below {name} = {start:.6g}"
             break
     bar.close()
+    if status == "max_points":
+        last = points[-1].value
+        message = (f"stopped after {max_points} points at {name} = {last:.6g}, "
+                   f"{abs(last - start) / scale:.0%} of the way from {start:.6g} to {end:.6g}")
     return Branch(name=name, points=points, events=events, status=status, message=message,
                   planar=planar, period=period)
 

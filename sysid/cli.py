@@ -177,7 +177,8 @@ def _continue(args, params) -> int:
     _write_branch(branch, out)
     for event in branch.events:
         print(event.detail)
-    print(f"{branch.status}: {branch.message}; {len(branch.points)} gaits -> {out}, "
+    hint = " (more with a larger --points)" if branch.status == "max_points" else ""
+    print(f"{branch.status}: {branch.message}{hint}; {len(branch.points)} gaits -> {out}, "
           f"{out.with_suffix('.png')}, {out.with_suffix('.json')}")
     return 0
 

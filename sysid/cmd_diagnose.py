@@ -99,7 +99,7 @@ def cmd_diagnose(args) -> int:
     if result.gain:
         g = result.gain
         print(f"held-out chi-square {g['base']:.1f} -> {g['extended']:.1f}; max |eigenvalue| "
-              f"{g['max_abs_eigenvalue']['base']:.4g} -> {g['max_abs_eigenvalue']['extended']:.4g}")
+              f"{g['max_abs_eigenvalue']['base']:#.4g} -> {g['max_abs_eigenvalue']['extended']:#.4g}")
     print(f"report -> {out / 'report.md'}")
     return 0
 

@@ -165,8 +165,8 @@ def _markdown(d: Diagnosis) -> str:
             lines.append(f"| {name} | {math.degrees(v):.3f} | "
                          f"{math.degrees(g['held_out_rms']['extended'][name]):.3f} |")
         eig = g["max_abs_eigenvalue"]
-        lines += ["", f"Predicted stability: max |eigenvalue| {eig['base']:.4g} (base) -> "
-                      f"{eig['extended']:.4g} (extended).", ""]
+        lines += ["", f"Predicted stability: max |eigenvalue| {eig['base']:#.4g} (base) -> "
+                      f"{eig['extended']:#.4g} (extended).", ""]
     return "\n".join(lines) + "\n"
 
 

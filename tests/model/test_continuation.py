@@ -138,6 +138,11 @@ def test_a_stored_gait_is_followed_to_the_first_value():
     params = load_params(DATA / "params" / "clearing-toy.toml")
     branch = continue_branch(params, "slope", 0.065, 0.066, max_points=3)
     assert branch.points[0].value == 0.065
+    # three points do not reach 0.066: the message says where the branch stopped, and how far
+    last = branch.points[-1].value
+    assert branch.status == "max_points" and 0.065 < last < 0.066
+    assert branch.message == (f"stopped after 3 points at slope = {last:.6g}, "
+                              f"{(last - 0.065) / 0.001:.0%} of the way from 0.065 to 0.066")
     direct = find_gait(params.replace(slope=0.065))
     np.testing.assert_allclose(branch.points[0].fixed_point, direct.fixed_point, rtol=0, atol=1e-8)
 
