@@ -27,7 +27,7 @@ from functools import cache
 import casadi as ca
 import numpy as np
 
-from .compiled import compile_with_derivatives
+from .compiled import cached_with_derivatives
 from .equations import build_functions, layout
 from .gait import Stability
 from .parameters import N_INPUT, Params, view
@@ -195,13 +195,14 @@ def interval_equations(planar: bool, degree: int) -> ca.Function:
 @cache
 def native_interval(planar: bool, degree: int) -> ca.Function:
     """:func:`interval_equations` compiled with its first and second derivatives
-    (:func:`toywalk.model.compiled.compile_with_derivatives`; once per machine, cached on disk):
+    (:func:`toywalk.model.compiled.cached_with_derivatives`; once per machine, cached on disk):
     one library serves every mesh size, stride length, parameter set and effect. A fit's IPOPT
     iteration then costs several times less than in CasADi's virtual machine (measured on a
     three-walk, 12-step joint fit of stable-toy with hip dry friction: Lagrangian Hessian 430 ->
     51 ms, constraint Jacobian 250 -> 21 ms an evaluation; the same estimates to 10 digits).
     The symbolic function itself without a compiler (``TOYWALK_JIT=0``)."""
-    return compile_with_derivatives(interval_equations(planar, degree))
+    return cached_with_derivatives(f"interval planar={planar} degree={degree}",
+                                   lambda: interval_equations(planar, degree))
 
 
 @cache

@@ -4,7 +4,15 @@ The generated C source of a set of functions is hashed (SHA-256, with the compil
 shared library lives under that hash in the cache folder (``$TOYWALK_CACHE``, else
 ``$XDG_CACHE_HOME/toywalk``, else ``~/.cache/toywalk``), so a second run loads it in milliseconds
 instead of compiling again. The library is written under a temporary name and renamed into place,
-so a killed compile never leaves a broken cache entry. Without a C compiler, or with
+so a killed compile never leaves a broken cache entry.
+
+Finding a library by the hash of its code means building the symbolic functions and generating
+their code first: 1.0-1.5 s a process for the 3D walker and its collocation intervals, paid by
+every command and every worker process. :func:`cached_functions` and
+:func:`cached_with_derivatives` skip that: an index file, keyed by a hash of this package's
+Python sources, CasADi's version and the compiler's command, names the library those sources
+generate. Any change to the model's code gives another key, and the slow way is taken once
+(and the index written again). Without a C compiler, or with
 ``TOYWALK_JIT=0``, the functions run in CasADi's virtual machine (same numbers; slower, by a
 factor that `make bench` measures: 1.6-1.8 for one right-hand side through preallocated buffers).
 """
@@ -12,19 +20,23 @@ factor that `make bench` measures: 1.6-1.8 for one right-hand side through preal
 from __future__ import annotations
 
 import hashlib
+import json
 import os
 import shutil
 import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
+from functools import cache
 from multiprocessing import get_context
 from pathlib import Path
 
 import casadi as ca
 
-__all__ = ["LIBRARIES", "build_libraries", "cache_dir", "compile_functions", "compile_with_derivatives"]
+__all__ = ["LIBRARIES", "build_libraries", "cache_dir", "cached_functions", "cached_with_derivatives",
+           "compile_functions", "compile_with_derivatives"]
 
 # -O1, not -O2: gcc 12 compiles the 3D walker's library in 43 s against 75 s (planar 9 s against
 # 17 s), and its functions run as fast (a step 35.8 against 36.1 us, the final state's Jacobian
@@ -46,6 +58,94 @@ def _compiler() -> str | None:
     if os.environ.get("TOYWALK_JIT", "1") == "0":
         return None
     return os.environ.get("CC") or shutil.which("gcc") or shutil.which("cc")
+
+
+@cache
+def _sources_digest() -> str:
+    """SHA-256 of this package's Python sources (the code that builds every compiled function)."""
+    root = Path(__file__).resolve().parent
+    digest = hashlib.sha256()
+    for path in sorted(root.rglob("*.py")):
+        digest.update(path.relative_to(root).as_posix().encode() + b"\0" + path.read_bytes() + b"\0")
+    return digest.hexdigest()
+
+
+def _index(name: str, variant: str, cc: str) -> Path:
+    """The index file naming the library that this package's sources give ``name, variant``."""
+    key = " | ".join((_sources_digest(), ca.__version__, f"{sys.version_info[:2]}", cc, *_CFLAGS,
+                      name, variant))
+    return cache_dir() / f"{name}-{hashlib.sha256(key.encode()).hexdigest()[:20]}.index.json"
+
+
+def _from_index(index: Path) -> dict[str, ca.Function] | None:
+    """The functions an index names, loaded from its library; None when either is missing or
+    unreadable (the caller then builds them)."""
+    try:
+        entry = json.loads(index.read_text())
+        lib = index.parent / entry["library"]
+        if not lib.is_file():
+            return None
+        return {key: ca.external(fn_name, str(lib), entry["options"])
+                for key, fn_name in entry["functions"].items()}
+    except (OSError, ValueError, KeyError, TypeError, RuntimeError):
+        return None
+
+
+def _write_index(index: Path, lib: Path, functions: dict[str, str], options: dict) -> None:
+    text = json.dumps({"library": lib.name, "functions": functions, "options": options})
+    with tempfile.NamedTemporaryFile("w", dir=index.parent, delete=False, suffix=".tmp") as tmp:
+        tmp.write(text)
+    os.replace(tmp.name, index)
+
+
+def cached_functions(name: str, variant: str, build: Callable[[], dict[str, ca.Function]],
+                     verbose: bool = True) -> dict[str, ca.Function]:
+    """:func:`compile_functions` of ``build()``, without calling ``build`` when a library that
+    this package's sources generate for ``name, variant`` is cached.
+
+    Parameters
+    ----------
+    name : str
+        Stem of the library.
+    variant : str
+        What distinguishes this set among those of one ``name`` (the arguments of its builder).
+    build : callable
+        Returns the functions to compile (symbolic), as for :func:`compile_functions`.
+    verbose : bool
+        Print one line to stderr when a compile is paid.
+    """
+    cc = _compiler()
+    if cc is None:
+        return dict(build())
+    index = _index(name, variant, cc)
+    found = _from_index(index)
+    if found is not None:
+        return found
+    functions = build()
+    lib = _library(name, list(functions.values()), verbose)
+    if lib is None:
+        return dict(functions)
+    _write_index(index, lib, {key_: fn.name() for key_, fn in functions.items()}, {})
+    return {key_: ca.external(fn.name(), str(lib)) for key_, fn in functions.items()}
+
+
+def cached_with_derivatives(variant: str, build: Callable[[], ca.Function],
+                            verbose: bool = True) -> ca.Function:
+    """:func:`compile_with_derivatives` of ``build()``, without calling ``build`` when its
+    library is cached (as :func:`cached_functions`; ``variant`` names the builder's arguments)."""
+    cc = _compiler()
+    if cc is None:
+        return build()
+    index = _index("derivatives", variant, cc)
+    found = _from_index(index)
+    if found is not None:
+        return found["fn"]
+    fn = build()
+    lib = _derivatives_library(fn, verbose)
+    if lib is None:
+        return fn
+    _write_index(index, lib, {"fn": fn.name()}, _WITH_DERIVATIVES)
+    return ca.external(fn.name(), str(lib), _WITH_DERIVATIVES)
 
 
 def compile_functions(
@@ -93,12 +193,22 @@ def compile_with_derivatives(fn: ca.Function, verbose: bool = True) -> ca.Functi
     verbose : bool
         Print one line to stderr when a compile is paid.
     """
-    adj = fn.reverse(1)
-    derived = [fn, fn.forward(1), adj, adj.forward(1)]
-    lib = _library(f"{fn.name()}_ad", derived, verbose, with_sparsity=True)
+    lib = _derivatives_library(fn, verbose)
     if lib is None:
         return fn
-    return ca.external(fn.name(), str(lib), {"enable_fd": False})
+    return ca.external(fn.name(), str(lib), _WITH_DERIVATIVES)
+
+
+#: Options of an external function that brings its own derivatives: never finite differences.
+_WITH_DERIVATIVES = {"enable_fd": False}
+
+
+def _derivatives_library(fn: ca.Function, verbose: bool) -> Path | None:
+    """The cached library of ``fn`` and its first and second derivatives (as
+    :func:`compile_with_derivatives` describes), or None without a compiler."""
+    adj = fn.reverse(1)
+    derived = [fn, fn.forward(1), adj, adj.forward(1)]
+    return _library(f"{fn.name()}_ad", derived, verbose, with_sparsity=True)
 
 
 def _library(name: str, functions: list[ca.Function], verbose: bool,

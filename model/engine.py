@@ -17,9 +17,8 @@ from functools import cache
 
 import casadi as ca
 import numpy as np
-from scipy.integrate._ivp import dop853_coefficients as _dop853
 
-from .compiled import compile_functions
+from .compiled import cached_functions
 from .equations import build_functions, layout
 from .parameters import N_INPUT, view
 
@@ -42,6 +41,10 @@ def rk8_step(rhs: ca.Function, x: ca.MX, dt: ca.MX, p: ca.MX) -> ca.MX:
     dt : casadi.MX, scalar
     p : casadi.MX, shape (n_p, 1)
     """
+    # here, not at import: scipy.integrate takes 0.5 s to import, and a process whose kernels
+    # come from the cache (model.compiled.cached_functions) never builds a step
+    from scipy.integrate._ivp import dop853_coefficients as _dop853
+
     a, b = _dop853.A, _dop853.B
     stages = []
     for i in range(_dop853.N_STAGES):
@@ -100,86 +103,12 @@ class Engine:
     def __init__(self, planar: bool, effects: bool = True, compiled: bool = True):
         self.lay = layout(planar)
         self.effects = effects
-        base = build_functions(planar, effects)
-        nx = self.lay.nx
-        x = ca.MX.sym("x", nx)
-        p = ca.MX.sym("p", N_INPUT)
-        par = view(p)
-        dt = ca.MX.sym("dt")
-        rhs = base["rhs"]
-        guard = base["guard"]
-        x_next = rk8_step(rhs, x, dt, p)
-        step = ca.Function("step", [x, dt, p], [x_next], ["x", "dt", "p"], ["x_next"])
-        sym = base["points"](x, p)
-        # Fallen when a hip, the whole walker's centre of mass, or a leg's centre of mass (the
-        # balance mass) reaches the ramp. A leg whose mass sits inside its foot (|G - O| <= r, as
-        # for the simplest walker's point-mass feet) is exempt: that is the foot, not a fall.
-        m, mh = par.leg_mass, par.axle_mass
-        com_z = (m * (sym[2, 7] + sym[2, 8]) + mh * sym[2, 3]) / (2 * m + mh)
-        foot_centre = ca.vertcat(0, 0, -(par.leg_length - par.foot_radius))
-        in_foot = (ca.norm_2(par.com_offset - foot_centre)
-                   <= par.foot_radius + 1e-9 * par.leg_length)
-        legs_z = ca.if_else(in_foot, ca.inf, ca.fmin(sym[2, 7], sym[2, 8]))
-        low = ca.fmin(ca.fmin(ca.fmin(sym[2, 2], sym[2, 4]), com_z), legs_z)
-        probe = ca.Function("probe", [x, p], [ca.vertcat(guard(x, p), low)], ["x", "p"], ["g"])
-        scan_step = ca.Function(
-            "scan_step", [x, dt, p], [x_next, probe(x_next, p)], ["x", "dt", "p"], ["x_next", "g"]
-        )
-        acc = scan_step.mapaccum("scan_acc", SCAN, [0], [0])
-        xs, gs = acc(x, dt, p)
-        scan = ca.Function("scan", [x, dt, p], [xs, gs], ["x", "dt", "p"], ["X", "G"])
-        # Final step onto the guard: value, d/dtau of the guard, and all Jacobians.
-        xt = step(x, dt, p)
-        g_final = guard(xt, p)
-        final = ca.Function(
-            "final", [x, dt, p], [g_final, ca.jacobian(g_final[0], dt), xt],
-            ["x", "tau", "p"], ["g", "dh_dtau", "x_T"],
-        )
-        final_jac = ca.Function(
-            "final_jac", [x, dt, p],
-            [xt, ca.jacobian(xt, x), ca.jacobian(xt, dt), ca.jacobian(xt, p)],
-            ["x", "tau", "p"], ["x_T", "S_x", "S_tau", "S_p"],
-        )
-        h = guard(x, p)[0]
-        guard_jac = ca.Function(
-            "guard_jac", [x, p], [h, ca.jacobian(h, x), ca.jacobian(h, p)], ["x", "p"], ["h", "h_x", "h_p"]
-        )
-        xp = base["collision"](x, p)
-        collision_jac = ca.Function(
-            "collision_jac", [x, p], [xp, ca.jacobian(xp, x), ca.jacobian(xp, p)],
-            ["x", "p"], ["x_plus", "C_x", "C_p"],
-        )
-        # The energy each continuous effect dissipates over one integration step: the same
-        # Runge-Kutta step of the system augmented with W' = D(x), so that E(t) - E(0) + W(t)
-        # vanishes to the integrator's accuracy (model.md section 6's energy accounting).
-        n_diss = base["dissipation"].size1_out(0)
-        xw = ca.MX.sym("xw", nx + n_diss)
-        rhs_aug = ca.Function("rhs_aug", [xw, p], [ca.vertcat(rhs(xw[:nx], p),
-                                                              base["dissipation"](xw[:nx], p))])
-        dissipated = rk8_step(rhs_aug, ca.vertcat(x, ca.MX.zeros(n_diss)), dt, p)[nx:]
-        dissipation_step = ca.Function("dissipation_step", [x, dt, p], [dissipated],
-                                       ["x", "dt", "p"], ["W"])
-        fns = {
-            "rhs": rhs, "energy": base["energy"], "guard": guard, "collision": base["collision"],
-            "impact": base["impact"], "dissipation": base["dissipation"],
-            "dissipation_step": dissipation_step,
-            "points": base["points"], "momenta": base["momenta"], "mass_matrix": base["mass_matrix"],
-            "step": step, "probe": probe, "scan": scan, "final": final, "final_jac": final_jac,
-            "guard_jac": guard_jac, "collision_jac": collision_jac,
-        }
-        # Chunk Jacobians: wrt the state only (cheap), and wrt state and parameters.
-        for n in CHUNKS:
-            xe = step.fold(n)(x, dt, p)
-            fns[f"chunk{n}"] = ca.Function(
-                f"chunk{n}", [x, dt, p], [xe, ca.jacobian(xe, x)], ["x", "dt", "p"], ["x_end", "A"]
-            )
-            fns[f"chunkp{n}"] = ca.Function(
-                f"chunkp{n}", [x, dt, p], [xe, ca.jacobian(xe, x), ca.jacobian(xe, p)],
-                ["x", "dt", "p"], ["x_end", "A", "B"],
-            )
         tag = ("planar" if planar else "walker3d") + ("" if effects else "_seed")
-        dense = {name: _dense(fn) for name, fn in fns.items()}
-        self.fns = compile_functions(tag, dense) if compiled else dense
+        if compiled:  # the symbolic functions are built only when no cached library serves
+            self.fns = cached_functions(tag, f"planar={planar} effects={effects}",
+                                        lambda: _kernel_functions(planar, effects))
+        else:
+            self.fns = _kernel_functions(planar, effects)
         self.k = {name: Kernel(fn) for name, fn in self.fns.items()}
 
     def chunk_jacobian(self, x0: np.ndarray, n_steps: int, dt: float, p: np.ndarray,
@@ -213,6 +142,89 @@ def _dense(fn: ca.Function) -> ca.Function:
     args = [ca.MX.sym(fn.name_in(i), fn.sparsity_in(i)) for i in range(fn.n_in())]
     outs = [ca.densify(o) for o in fn.call(args)]
     return ca.Function(fn.name(), args, outs, fn.name_in(), fn.name_out())
+
+
+def _kernel_functions(planar: bool, effects: bool) -> dict[str, ca.Function]:
+    """The kernels of :class:`Engine`, symbolic (dense outputs), built from the equations."""
+    lay = layout(planar)
+    base = build_functions(planar, effects)
+    nx = lay.nx
+    x = ca.MX.sym("x", nx)
+    p = ca.MX.sym("p", N_INPUT)
+    par = view(p)
+    dt = ca.MX.sym("dt")
+    rhs = base["rhs"]
+    guard = base["guard"]
+    x_next = rk8_step(rhs, x, dt, p)
+    step = ca.Function("step", [x, dt, p], [x_next], ["x", "dt", "p"], ["x_next"])
+    sym = base["points"](x, p)
+    # Fallen when a hip, the whole walker's centre of mass, or a leg's centre of mass (the
+    # balance mass) reaches the ramp. A leg whose mass sits inside its foot (|G - O| <= r, as
+    # for the simplest walker's point-mass feet) is exempt: that is the foot, not a fall.
+    m, mh = par.leg_mass, par.axle_mass
+    com_z = (m * (sym[2, 7] + sym[2, 8]) + mh * sym[2, 3]) / (2 * m + mh)
+    foot_centre = ca.vertcat(0, 0, -(par.leg_length - par.foot_radius))
+    in_foot = (ca.norm_2(par.com_offset - foot_centre)
+               <= par.foot_radius + 1e-9 * par.leg_length)
+    legs_z = ca.if_else(in_foot, ca.inf, ca.fmin(sym[2, 7], sym[2, 8]))
+    low = ca.fmin(ca.fmin(ca.fmin(sym[2, 2], sym[2, 4]), com_z), legs_z)
+    probe = ca.Function("probe", [x, p], [ca.vertcat(guard(x, p), low)], ["x", "p"], ["g"])
+    scan_step = ca.Function(
+        "scan_step", [x, dt, p], [x_next, probe(x_next, p)], ["x", "dt", "p"], ["x_next", "g"]
+    )
+    acc = scan_step.mapaccum("scan_acc", SCAN, [0], [0])
+    xs, gs = acc(x, dt, p)
+    scan = ca.Function("scan", [x, dt, p], [xs, gs], ["x", "dt", "p"], ["X", "G"])
+    # Final step onto the guard: value, d/dtau of the guard, and all Jacobians.
+    xt = step(x, dt, p)
+    g_final = guard(xt, p)
+    final = ca.Function(
+        "final", [x, dt, p], [g_final, ca.jacobian(g_final[0], dt), xt],
+        ["x", "tau", "p"], ["g", "dh_dtau", "x_T"],
+    )
+    final_jac = ca.Function(
+        "final_jac", [x, dt, p],
+        [xt, ca.jacobian(xt, x), ca.jacobian(xt, dt), ca.jacobian(xt, p)],
+        ["x", "tau", "p"], ["x_T", "S_x", "S_tau", "S_p"],
+    )
+    h = guard(x, p)[0]
+    guard_jac = ca.Function(
+        "guard_jac", [x, p], [h, ca.jacobian(h, x), ca.jacobian(h, p)], ["x", "p"], ["h", "h_x", "h_p"]
+    )
+    xp = base["collision"](x, p)
+    collision_jac = ca.Function(
+        "collision_jac", [x, p], [xp, ca.jacobian(xp, x), ca.jacobian(xp, p)],
+        ["x", "p"], ["x_plus", "C_x", "C_p"],
+    )
+    # The energy each continuous effect dissipates over one integration step: the same
+    # Runge-Kutta step of the system augmented with W' = D(x), so that E(t) - E(0) + W(t)
+    # vanishes to the integrator's accuracy (model.md section 6's energy accounting).
+    n_diss = base["dissipation"].size1_out(0)
+    xw = ca.MX.sym("xw", nx + n_diss)
+    rhs_aug = ca.Function("rhs_aug", [xw, p], [ca.vertcat(rhs(xw[:nx], p),
+                                                          base["dissipation"](xw[:nx], p))])
+    dissipated = rk8_step(rhs_aug, ca.vertcat(x, ca.MX.zeros(n_diss)), dt, p)[nx:]
+    dissipation_step = ca.Function("dissipation_step", [x, dt, p], [dissipated],
+                                   ["x", "dt", "p"], ["W"])
+    fns = {
+        "rhs": rhs, "energy": base["energy"], "guard": guard, "collision": base["collision"],
+        "impact": base["impact"], "dissipation": base["dissipation"],
+        "dissipation_step": dissipation_step,
+        "points": base["points"], "momenta": base["momenta"], "mass_matrix": base["mass_matrix"],
+        "step": step, "probe": probe, "scan": scan, "final": final, "final_jac": final_jac,
+        "guard_jac": guard_jac, "collision_jac": collision_jac,
+    }
+    # Chunk Jacobians: wrt the state only (cheap), and wrt state and parameters.
+    for n in CHUNKS:
+        xe = step.fold(n)(x, dt, p)
+        fns[f"chunk{n}"] = ca.Function(
+            f"chunk{n}", [x, dt, p], [xe, ca.jacobian(xe, x)], ["x", "dt", "p"], ["x_end", "A"]
+        )
+        fns[f"chunkp{n}"] = ca.Function(
+            f"chunkp{n}", [x, dt, p], [xe, ca.jacobian(xe, x), ca.jacobian(xe, p)],
+            ["x", "dt", "p"], ["x_end", "A", "B"],
+        )
+    return {name: _dense(fn) for name, fn in fns.items()}
 
 
 @cache

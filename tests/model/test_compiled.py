@@ -150,3 +150,73 @@ def test_every_library_is_built_once_side_by_side(tmp_path, monkeypatch):
 def test_build_libraries_refuses_no_jobs():
     with pytest.raises(ValueError, match="jobs must be at least 1"):
         compiled.build_libraries(jobs=0)
+
+
+def _refuse():
+    raise AssertionError("the functions were built although an indexed library serves")
+
+
+def test_an_indexed_library_is_loaded_without_building(tmp_path, monkeypatch):
+    """``cached_functions`` builds and compiles once; then the index its sources' hash names
+    serves the library without calling the builder. Another hash of the sources (any change to
+    the model's code), an index whose library is gone, and an unreadable index each send it back
+    to the builder, which the code's own hash then serves from the cache without compiling."""
+    monkeypatch.setenv("TOYWALK_CACHE", str(tmp_path))
+    monkeypatch.delenv("TOYWALK_JIT", raising=False)
+    x = np.array([0.1, -0.4, 2.0])
+    expected = np.sin(x) * 1.5 + x @ x
+    first = compiled.cached_functions("cachetest", "v1", _function, verbose=False)
+    np.testing.assert_allclose(np.array(first["f"](x, 1.5)).ravel(), expected, rtol=1e-15)
+    index, = tmp_path.glob("cachetest-*.index.json")
+    again = compiled.cached_functions("cachetest", "v1", _refuse, verbose=False)
+    np.testing.assert_allclose(np.array(again["f"](x, 1.5)).ravel(), expected, rtol=1e-15)
+    assert again["f"].class_name() == "External"
+
+    def no_compiler(*args, **kwargs):
+        raise AssertionError("the compiler ran although the cache holds this code")
+    monkeypatch.setattr(subprocess, "run", no_compiler)
+    built = []
+
+    def build():
+        built.append(1)
+        return _function()
+    # another variant, another index
+    compiled.cached_functions("cachetest", "v2", build, verbose=False)
+    # the model's sources changed
+    monkeypatch.setattr(compiled, "_sources_digest", lambda: "edited")
+    compiled.cached_functions("cachetest", "v1", build, verbose=False)
+    monkeypatch.undo()
+    monkeypatch.setenv("TOYWALK_CACHE", str(tmp_path))
+    monkeypatch.delenv("TOYWALK_JIT", raising=False)
+    monkeypatch.setattr(subprocess, "run", no_compiler)
+    # an unreadable index is rewritten
+    index.write_text("{not json")
+    out = compiled.cached_functions("cachetest", "v1", build, verbose=False)
+    np.testing.assert_allclose(np.array(out["f"](x, 1.5)).ravel(), expected, rtol=1e-15)
+    assert compiled.cached_functions("cachetest", "v1", _refuse, verbose=False)
+    # its library gone: built, and compiled again
+    monkeypatch.undo()
+    monkeypatch.setenv("TOYWALK_CACHE", str(tmp_path))
+    monkeypatch.delenv("TOYWALK_JIT", raising=False)
+    for lib in tmp_path.glob("cachetest-*.so"):
+        lib.unlink()
+    compiled.cached_functions("cachetest", "v1", build, verbose=False)
+    assert len(built) == 4
+    assert len(list(tmp_path.glob("cachetest-*.so"))) == 1
+
+
+def test_an_indexed_library_with_derivatives_keeps_them(tmp_path, monkeypatch):
+    """``cached_with_derivatives`` loaded from its index still brings its own derivatives: an
+    NLP's Jacobian of the loaded function equals the symbolic one's."""
+    monkeypatch.setenv("TOYWALK_CACHE", str(tmp_path))
+    monkeypatch.delenv("TOYWALK_JIT", raising=False)
+    fn = _function()["f"]
+    compiled.cached_with_derivatives("cachetest", lambda: fn, verbose=False)
+    loaded = compiled.cached_with_derivatives("cachetest", _refuse, verbose=False)
+    assert loaded.class_name() == "External"
+    x, p = ca.MX.sym("x", 3), ca.MX.sym("p")
+    jac = ca.Function("j", [x, p], [ca.jacobian(loaded(x, p), x), ca.hessian(ca.sum1(loaded(x, p)), x)[0]])
+    ref = ca.Function("r", [x, p], [ca.jacobian(fn(x, p), x), ca.hessian(ca.sum1(fn(x, p)), x)[0]])
+    x0 = [0.1, -0.4, 2.0]
+    for a, b in zip(jac(x0, 1.5), ref(x0, 1.5), strict=True):
+        np.testing.assert_allclose(np.array(a), np.array(b), rtol=1e-14, atol=1e-14)
