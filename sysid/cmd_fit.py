@@ -105,7 +105,7 @@ def cmd_fit(args) -> int:
         print(f"{name:<28s} {result.estimates[name]: .6g} +/- {result.std[name]:.2g}")
     gait = result.gait
     if gait:
-        print(f"fitted gait: {gait['map']} map, max |eigenvalue| {gait['max_abs_eigenvalue']:.4g} "
+        print(f"fitted gait: {gait['map']} map, max |eigenvalue| {gait['max_abs_eigenvalue']:#.4g} "
               f"({'stable' if gait['stable'] else 'unstable'})")
     rms = ", ".join(f"{k} {math.degrees(v):.3g} deg" for k, v in result.residual_rms.items()
                     if k not in ("step_duration", "strike_time", *CONTACT_KEYS))

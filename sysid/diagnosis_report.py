@@ -237,7 +237,7 @@ def _summary_markdown(d) -> str:
         lines.append(f"| {k} | {v:.4g} | {s:.3g} | {_num(model, '.4g')} | "
                      f"{d.base.residuals[k]:+.2f} |")
     lines += ["", f"Measured: stable = {data.stable}, can stand = {data.can_stand}. Base model: "
-              f"max |eigenvalue| per step {d.base.max_abs_eigenvalue:.4g} "
+              f"max |eigenvalue| per step {d.base.max_abs_eigenvalue:#.4g} "
               f"({'stable' if d.base.stable else 'unstable'}), can stand = {d.base.can_stand}. "
               f"Not used: {', '.join(data.unused) or 'none'}.", "", "![numbers](numbers.png)", ""]
     if d.ranking:
@@ -266,7 +266,7 @@ def _summary_markdown(d) -> str:
             est = ", ".join(f"{k} = {v:.4g}" for k, v in p["estimate"].items())
             lines.append(f"| {' + '.join(p['pair'])} | {p['chi2']:.2f} | {p['dof']} | {est} | "
                          f"{', '.join(_num(a, '.2g') for a in p['adds_p'])} | "
-                         f"{p['max_abs_eigenvalue']:.4g} |")
+                         f"{p['max_abs_eigenvalue']:#.4g} |")
     s = d.sensitivity
     if s:
         lines += ["", "## What these numbers can identify", "",
