@@ -92,10 +92,18 @@ def _from_index(index: Path) -> dict[str, ca.Function] | None:
 
 
 def _write_index(index: Path, lib: Path, functions: dict[str, str], options: dict) -> None:
+    """Write the index atomically; where the cache cannot be written (a shared, read-only cache
+    of compiled libraries) there is none, and each process builds the functions to find them."""
     text = json.dumps({"library": lib.name, "functions": functions, "options": options})
-    with tempfile.NamedTemporaryFile("w", dir=index.parent, delete=False, suffix=".tmp") as tmp:
-        tmp.write(text)
-    os.replace(tmp.name, index)
+    tmp = None
+    try:
+        with tempfile.NamedTemporaryFile("w", dir=index.parent, delete=False, suffix=".tmp") as f:
+            tmp = f.name
+            f.write(text)
+        os.replace(tmp, index)
+    except OSError:
+        if tmp is not None:
+            Path(tmp).unlink(missing_ok=True)
 
 
 def cached_functions(name: str, variant: str, build: Callable[[], dict[str, ca.Function]],

@@ -220,3 +220,20 @@ def test_an_indexed_library_with_derivatives_keeps_them(tmp_path, monkeypatch):
     x0 = [0.1, -0.4, 2.0]
     for a, b in zip(jac(x0, 1.5), ref(x0, 1.5), strict=True):
         np.testing.assert_allclose(np.array(a), np.array(b), rtol=1e-14, atol=1e-14)
+
+
+def test_a_read_only_cache_serves_without_an_index(tmp_path, monkeypatch):
+    """A cache of compiled libraries that cannot be written (shared between machines, mounted
+    read-only: here every file it would create is refused) still serves them: no index is
+    written, and the functions are built to find them."""
+    monkeypatch.setenv("TOYWALK_CACHE", str(tmp_path))
+    monkeypatch.delenv("TOYWALK_JIT", raising=False)
+    compiled.compile_functions("cachetest", _function(), verbose=False)
+
+    def read_only(*args, **kwargs):
+        raise OSError(30, "Read-only file system")
+    monkeypatch.setattr(compiled.tempfile, "NamedTemporaryFile", read_only)
+    monkeypatch.setattr(compiled.tempfile, "TemporaryDirectory", read_only)
+    out = compiled.cached_functions("cachetest", "v1", _function, verbose=False)
+    assert out["f"].class_name() == "External"
+    assert not list(tmp_path.glob("*.index.json")) and not list(tmp_path.glob("*.tmp"))
