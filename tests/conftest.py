@@ -9,34 +9,6 @@ from toywalk.model.parameters import Params
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "data"
 
-#: The suite's longest files, longest first (seconds in `make test`, 2026-11-27: 138 down to 38).
-#: They are run first, so that `make test`'s two processes end together: a process that draws
-#: a long file last keeps the other waiting (longest-first scheduling). Only an order: a file
-#: missing here, or one that has grown, runs all the same.
-LONGEST_FIRST = (
-    "sysid/test_walks_ties.py", "sysid/test_walks.py", "sysid/test_fit.py",
-    "tracking/test_ramp_pose.py", "sysid/test_demo.py", "sysid/test_sample.py",
-    "tracking/test_occluded_leg.py", "sysid/test_summary.py", "sysid/test_multistart.py",
-    "sysid/test_transient.py", "sysid/test_walks_ties_cross_slope.py",
-    "sysid/test_fit_misspecified.py", "sysid/test_discrepancy_effects.py", "test_notebooks.py",
-    "sysid/test_discrepancy.py", "tracking/test_track_rendered.py", "tracking/test_track_mujoco.py",
-)
-
-
-def pytest_collection_modifyitems(config, items):
-    """Put the files of :data:`LONGEST_FIRST` first, in its order; a file's tests stay together
-    and in their order, and every other file keeps its place after them."""
-    rank = {name: k for k, name in enumerate(LONGEST_FIRST)}
-    here = Path(__file__).resolve().parent
-
-    def key(item):
-        try:
-            name = item.path.resolve().relative_to(here).as_posix()
-        except ValueError:
-            name = ""
-        return rank.get(name, len(rank))
-    items.sort(key=key)  # stable: the rest keep the collection's order
-
 
 @pytest.fixture
 def toy_params() -> Params:
