@@ -115,9 +115,9 @@ def _candidate_figure(d: Diagnosis, folder: Path) -> Path:
     ax.barh(y - 0.2, [max(r.get("lr", 0.0), 0.0) for r in rows], height=0.4, color="C2",
             label="likelihood ratio (fitted)")
     k = len(rows)
-    from scipy import stats
+    from scipy import special
 
-    ax.axvline(stats.chi2.isf(d.alpha / k, 1), color="k", ls="--", lw=0.8,
+    ax.axvline(special.chdtri(1, d.alpha / k), color="k", ls="--", lw=0.8,
                label=f"alpha / K = {d.alpha:g} / {k}")
     ax.set_xscale("symlog", linthresh=10)
     ax.set_yticks(y, [r["effect"] for r in rows], fontsize=7)
@@ -318,7 +318,7 @@ def _walks_phase_figure(d, folder: Path) -> Path:
 
 def _walks_candidate_figure(d, folder: Path) -> Path:
     from matplotlib.figure import Figure
-    from scipy import stats
+    from scipy import special
 
     rows = d.ranking
     fig = Figure(figsize=(8, 0.3 * len(rows) + 1.2))
@@ -328,7 +328,7 @@ def _walks_candidate_figure(d, folder: Path) -> Path:
             label="score statistic z^2 (screening)")
     ax.barh(y - 0.2, [max(r.get("lr", 0.0), 0.0) for r in rows], height=0.4, color="C2",
             label="likelihood ratio (fitted, all walks)")
-    ax.axvline(stats.chi2.isf(d.alpha / len(rows), 1), color="k", ls="--", lw=0.8,
+    ax.axvline(special.chdtri(1, d.alpha / len(rows)), color="k", ls="--", lw=0.8,
                label=f"alpha / K = {d.alpha:g} / {len(rows)}")
     ax.set_xscale("symlog", linthresh=10)
     ax.set_yticks(y, [r["effect"] for r in rows], fontsize=7)

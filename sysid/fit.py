@@ -47,8 +47,8 @@ from functools import cache, cached_property
 import casadi as ca
 import numpy as np
 import scipy.sparse as sp
+from scipy import special
 from scipy.sparse.linalg import splu
-from scipy.stats import chi2 as chi2_dist
 from toywalk.model.collocation import BVP, bvp, contact_travel, cycle_jacobian, initial_guess
 from toywalk.model.effects import EFFECTS
 from toywalk.model.gait import GaitNotFound, _lateral_singular, find_gait, solve_fixed_point
@@ -1256,7 +1256,7 @@ def periodicity_test(table: TrajectoryTable, params: Params, free, *,
                        warm=periodic if periodic.success else None)
     dof = transient.start_dof
     delta = max(periodic.chi2 - transient.chi2, 0.0)
-    p_value = float(chi2_dist.sf(delta, dof))
+    p_value = float(special.chdtrc(dof, delta))
     if not (periodic.success and transient.success):
         failed = [f"{r.model} ({r.status})" for r in (periodic, transient) if not r.success]
         return PeriodicityTest(periodic, transient, delta, dof, p_value, alpha, None,

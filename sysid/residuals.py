@@ -33,7 +33,7 @@ import math
 import warnings
 
 import numpy as np
-from scipy import stats
+from scipy import special
 from toywalk.model.trajectory import SIGNALS
 
 from .measurement import Observations
@@ -170,7 +170,7 @@ def _pattern(x: np.ndarray) -> tuple[float, float, float]:
     cov = centre @ np.cov(x, rowvar=False) @ centre
     eps = float(np.trace(cov) ** 2 / (df_bins * np.trace(cov @ cov)))
     eps = min(max(eps, 1.0 / df_bins), 1.0)
-    return float(f), eps, float(stats.f.sf(f, eps * df_bins, eps * df_err))
+    return float(f), eps, float(special.fdtrc(eps * df_bins, eps * df_err, f))
 
 
 def _ljung_box(series: np.ndarray, lags: int) -> tuple[float, float]:
@@ -185,7 +185,7 @@ def _ljung_box(series: np.ndarray, lags: int) -> tuple[float, float]:
         return math.nan, math.nan
     acf = np.array([float(x[k:] @ x[:-k]) / denom for k in range(1, lags + 1)])
     q = float(n * (n + 2) * np.sum(acf**2 / (n - np.arange(1, lags + 1))))
-    return q, float(stats.chi2.sf(q, lags))
+    return q, float(special.chdtrc(lags, q))
 
 
 def _runs(series: np.ndarray) -> tuple[float, float]:
@@ -199,7 +199,7 @@ def _runs(series: np.ndarray) -> tuple[float, float]:
     mean = 2.0 * n1 * n2 / n + 1.0
     var = 2.0 * n1 * n2 * (2.0 * n1 * n2 - n) / (n**2 * (n - 1.0))
     z = (runs - mean) / math.sqrt(max(var, 1e-300))
-    return float(z), float(stats.norm.cdf(z))
+    return float(z), float(special.ndtr(z))
 
 
 def residual_report(obs: Observations, residuals: np.ndarray, bins: int | None = None,
@@ -448,7 +448,7 @@ def step_dependence(obs: Observations, residuals: np.ndarray, degree: int = STEP
     if not dfn:
         return {"F": math.nan, "dfn": 0, "dfd": 0, "p": math.nan, "by_signal": {}}
     f_value = float(stat / dfn)
-    return {"F": f_value, "dfn": dfn, "dfd": dfd, "p": float(stats.f.sf(f_value, dfn, dfd)),
+    return {"F": f_value, "dfn": dfn, "dfd": dfd, "p": float(special.fdtrc(dfn, dfd, f_value)),
             "by_signal": by_signal}
 
 

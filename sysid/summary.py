@@ -64,7 +64,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
-from scipy import stats
+from scipy import special
 from toywalk.model.continuation import continue_branch
 from toywalk.model.gait import Gait, GaitNotFound, find_gait, solve_fixed_point
 from toywalk.model.optimize import FitResult, fit_gait_targets, gait_features
@@ -291,13 +291,13 @@ class SummaryFit:
     @property
     def p_value(self) -> float:
         """Chi-square p-value of the fit on its degrees of freedom (NaN with none left)."""
-        return float(stats.chi2.sf(self.chi2, self.dof)) if self.dof > 0 else math.nan
+        return float(special.chdtrc(self.dof, self.chi2)) if self.dof > 0 else math.nan
 
     def reaches(self, alpha: float) -> bool:
         """Whether the model explains the numbers within their uncertainties at ``alpha``."""
         if self.dof > 0:
             return self.p_value >= alpha
-        return self.chi2 <= float(stats.chi2.ppf(1.0 - alpha, 1))
+        return self.chi2 <= float(special.chdtri(1, alpha))
 
     def to_json(self) -> dict:
         return {"free": list(self.names), "estimates": self.estimates, "std": self.std,

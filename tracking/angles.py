@@ -286,7 +286,7 @@ def pooled_marker_sd(poses, min_frames: int = 5, iterations: int = 20) -> dict:
     dict int -> float
         Marker id -> pixels, never below 0.02 (sub-pixel corners are never better).
     """
-    from scipy.stats import chi2
+    from scipy.special import chdtri
 
     # One row per (frame, marker seen in it): the marker's sum of squared residuals, its share of
     # the residual freedom (tr of its block of M), and, for the variances v of all markers,
@@ -344,7 +344,7 @@ def pooled_marker_sd(poses, min_frames: int = 5, iterations: int = 20) -> dict:
                 continue
             freedom = float(np.median(dof[take]))
             # the median of a chi-square over its mean, for that many degrees of freedom
-            step[i] = float(np.median(ratio[take])) / (chi2.median(freedom) / freedom)
+            step[i] = float(np.median(ratio[take])) / (chdtri(freedom, 0.5) / freedom)
         variance *= step
         if np.max(np.abs(step - 1.0)) < 1e-6:  # settled: SDs to 5e-7
             break
@@ -374,10 +374,16 @@ def pooled_pixel_sd(poses) -> float:
     if not values:
         return 0.5  # pixels: a conservative guess when no frame has redundant points
     dof = np.median([2 * p.n_points - 6 for p in poses if p is not None and 2 * p.n_points > 6])
-    from scipy.stats import chi
-
-    ratio = chi.median(dof) / math.sqrt(dof)  # median of rms/sigma for dof degrees of freedom
+    ratio = _chi_median(dof) / math.sqrt(dof)  # median of rms/sigma for dof degrees of freedom
     return max(float(np.median(values)) / ratio, 0.02)  # floor: sub-pixel corners are never better
+
+
+def _chi_median(dof: float) -> float:
+    """Median of the chi distribution on ``dof`` degrees of freedom: the root of the chi-square's
+    (scipy.special, not scipy.stats, which takes a second to import)."""
+    from scipy.special import chdtri
+
+    return math.sqrt(float(chdtri(dof, 0.5)))
 
 
 def pooled_walker_sd(poses) -> float:
@@ -398,9 +404,7 @@ def pooled_walker_sd(poses) -> float:
         return 0.5  # pixels: a conservative guess when no frame has redundant points
     values = [p.rms * math.sqrt((p.dof + len(p.names)) / p.dof) for p in good]
     dof = float(np.median([p.dof for p in good]))
-    from scipy.stats import chi
-
-    ratio = chi.median(dof) / math.sqrt(dof)
+    ratio = _chi_median(dof) / math.sqrt(dof)
     return max(float(np.median(values)) / ratio, 0.02)
 
 

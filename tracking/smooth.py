@@ -13,7 +13,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.signal import savgol_coeffs, savgol_filter
 
 __all__ = ["smooth_signals"]
 
@@ -41,6 +40,10 @@ def smooth_signals(time: np.ndarray, raw: dict, sd: dict, events, window: int,
         Copies of ``raw`` and ``sd``, smoothed (and the SDs scaled by the noise gain) on every
         stretch of at least ``window`` samples.
     """
+    # here, not at import: scipy.signal imports scipy.stats (about a second), which a process
+    # that only imports the tracker (the analysis commands) would pay for nothing
+    from scipy.signal import savgol_coeffs, savgol_filter
+
     smooth = {k: v.copy() for k, v in raw.items()}
     smooth_sd = {k: v.copy() for k, v in sd.items()}
     gain = math.sqrt(float(np.sum(savgol_coeffs(window, order) ** 2)))

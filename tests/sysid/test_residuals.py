@@ -219,3 +219,43 @@ def test_step_dependence_tells_a_walk_off_its_cycle_from_a_misfit():
     # likelihood ratio (toywalk.sysid.fit.periodicity_test)
     short = _obs(n_steps=2, per_step=5)
     assert np.isnan(step_dependence(short, np.zeros(len(short.time)))["p"])
+
+
+def test_the_tests_tails_are_scipy_stats_ones():
+    """The p-values and densities come from scipy.special (scipy.stats takes a second to import in
+    every process): each equals scipy.stats' own, the reference, where it is used."""
+    from scipy import stats
+    from toywalk.sysid.discrepancy import _normal_log_density, lr_p_value
+    from toywalk.sysid.residuals import _ljung_box, _pattern, _runs
+    from toywalk.tracking.angles import _chi_median
+
+    rng = np.random.default_rng(5)
+    x = rng.normal(size=(7, 5)) + np.linspace(0, 1, 5)  # steps by bins, with a pattern
+    f, eps, p = _pattern(x)
+    n, k = x.shape
+    assert_allclose(p, stats.f.sf(f, eps * (k - 1), eps * (n - 1) * (k - 1)), rtol=1e-12)
+    series = rng.normal(size=40)
+    q, p = _ljung_box(series, 5)
+    assert_allclose(p, stats.chi2.sf(q, 5), rtol=1e-12)
+    z, p = _runs(series)
+    assert_allclose(p, stats.norm.cdf(z), rtol=1e-12)
+    for lr in (0.0, 0.5, 3.84, 40.0):
+        assert_allclose(lr_p_value(lr, False), stats.chi2.sf(lr, 1), rtol=1e-12)
+        assert_allclose(lr_p_value(lr, True), 0.5 * stats.chi2.sf(lr, 1), rtol=1e-12)
+    assert_allclose(_normal_log_density(0.3, -0.1, 0.2), stats.norm.logpdf(0.3, -0.1, 0.2), rtol=1e-13)
+    for dof in (1, 2.5, 9, 120):
+        assert_allclose(_chi_median(dof), stats.chi.median(dof), rtol=1e-12)
+
+
+def test_the_commands_do_not_load_scipy_stats():
+    """Every toywalk command would pay scipy.stats' import (about a second) for a handful of
+    tail probabilities that scipy.special gives: the analysis and tracking modules do without."""
+    import subprocess
+    import sys
+
+    code = ("import sys; import toywalk.sysid.cli, toywalk.sysid.fit, toywalk.sysid.discrepancy, "
+            "toywalk.sysid.summary, toywalk.sysid.walks, toywalk.sysid.cmd_diagnose, "
+            "toywalk.sysid.cmd_fit, toywalk.tracking.track; print('scipy.stats' in sys.modules)")
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.strip() == "False"
