@@ -267,7 +267,9 @@ def _check_free(params: Params, free) -> list[str]:
     return names
 
 
-def _check_priors(priors: dict, free: list[str]) -> dict:
+def _check_priors(priors: dict, free: list[str], params: Params) -> dict:
+    """Priors as ``name -> (mean, sd)``, each on a free parameter, with a positive SD and a mean
+    that the fit's bounds allow (a measured value outside them is a mistake: a sign or a unit)."""
     out = {}
     for name, value in priors.items():
         if name not in free:
@@ -278,6 +280,10 @@ def _check_priors(priors: dict, free: list[str]) -> dict:
             raise FitError(f"the prior on {name} must be (mean, sd), got {value!r}") from err
         if not (math.isfinite(mean) and math.isfinite(sd) and sd > 0):
             raise FitError(f"the prior on {name} needs a finite mean and a positive sd, got {value!r}")
+        low, high = fit_bounds(params, free, name)
+        if not low <= mean <= high:
+            raise FitError(f"the prior on {name} has its mean {mean:g} outside the parameter's "
+                           f"bounds [{low:g}, {high:g}]")
         out[name] = (mean, sd)
     return out
 
@@ -540,7 +546,7 @@ def _setup(table: TrajectoryTable, params: Params, free, *, model, offsets, n_in
     b_op = offsets_design(obs) if offsets else np.zeros((len(obs.value), len(OFFSETS)))
     model_step = model_steps(obs, prob.phases, prob.periodic)
     w0 = _feasible_start(prob, walker, z_first, side) if w_start is None else np.asarray(w_start, float)
-    priors = _check_priors(priors or {}, free)
+    priors = _check_priors(priors or {}, free, params)
     pth = path(obs, prob.phases, prob.periodic)
     problem = _Problem(prob, walker, free, obs, tm, b_op, model_step, offsets, max_iter,
                        check_jacobian, priors, side, strikes, pth)

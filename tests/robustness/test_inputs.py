@@ -260,6 +260,20 @@ def test_diagnose_refuses_bad_names_before_fitting(option, value, words, walk, t
     _refused_and_untouched(capfd, tmp_path, argv, words)
 
 
+@pytest.mark.parametrize("prior, words", [
+    ("effects.hip_damping=-1e-4,1e-4", ["mean -0.0001 outside the parameter's bounds [0, 1]"]),
+    ("foot_radius=0.02,1e-3", ["a prior on 'foot_radius', which is not free"]),
+    ("effects.hip_damping=1e-4,0", ["needs a finite mean and a positive sd"]),
+    ("effects.hip_damping", ["--prior expects NAME=MEAN,SD"]),
+])
+def test_fit_refuses_a_bad_prior(prior, words, walk, tmp_path, capfd):
+    """A prior whose mean the parameter cannot take (here a negative damping: a sign slipped), on a
+    parameter not free, with no spread or not written NAME=MEAN,SD: one line, nothing written."""
+    argv = ["fit", walk, "--params", STABLE_TOY, "--free", "effects.hip_damping", "--prior", prior,
+            *_outputs(tmp_path, "fit")]
+    _refused_and_untouched(capfd, tmp_path, argv, words)
+
+
 # --- camera and marker layout files ---------------------------------------------------------------
 
 _CAMERA = json.loads(CAMERA.read_text())
