@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-__all__ = ["smooth_signals"]
+__all__ = ["savgol", "savgol_weights", "smooth_signals"]
 
 
 def smooth_signals(time: np.ndarray, raw: dict, sd: dict, events, window: int,
@@ -40,13 +40,9 @@ def smooth_signals(time: np.ndarray, raw: dict, sd: dict, events, window: int,
         Copies of ``raw`` and ``sd``, smoothed (and the SDs scaled by the noise gain) on every
         stretch of at least ``window`` samples.
     """
-    # here, not at import: scipy.signal imports scipy.stats (about a second), which a process
-    # that only imports the tracker (the analysis commands) would pay for nothing
-    from scipy.signal import savgol_coeffs, savgol_filter
-
     smooth = {k: v.copy() for k, v in raw.items()}
     smooth_sd = {k: v.copy() for k, v in sd.items()}
-    gain = math.sqrt(float(np.sum(savgol_coeffs(window, order) ** 2)))
+    gain = math.sqrt(float(np.sum(savgol_weights(window, order) ** 2)))
     cuts = np.searchsorted(time, [e.time for e in events])
     for k in raw:
         ok = np.isfinite(raw[k])
@@ -57,6 +53,33 @@ def smooth_signals(time: np.ndarray, raw: dict, sd: dict, events, window: int,
         for s in np.unique(seg_id[ok]):
             idx = np.flatnonzero((seg_id == s) & ok)
             if len(idx) >= window:
-                smooth[k][idx] = savgol_filter(raw[k][idx], window, order, mode="interp")
+                smooth[k][idx] = savgol(raw[k][idx], window, order)
                 smooth_sd[k][idx] = sd[k][idx] * gain
     return smooth, smooth_sd
+
+
+def savgol_weights(window: int, order: int) -> np.ndarray:
+    """Weights (window,) of the Savitzky-Golay smoother: the value at the window's centre of the
+    least-squares polynomial of degree ``order`` through ``window`` equally spaced samples
+    (Savitzky & Golay 1964, Anal. Chem. 36:1627). scipy.signal.savgol_coeffs gives the same; this
+    module does without scipy.signal, whose import takes about a second (it imports scipy.stats)."""
+    half = window // 2
+    vander = np.vander(np.arange(-half, half + 1, dtype=float), order + 1, increasing=True)
+    return np.linalg.pinv(vander)[0]
+
+
+def savgol(x: np.ndarray, window: int, order: int) -> np.ndarray:
+    """``x`` (n,), n >= window, smoothed by :func:`savgol_weights`; the first and last
+    ``window // 2`` samples take the polynomial fitted to the first and last ``window`` samples
+    (scipy.signal.savgol_filter's ``mode="interp"``)."""
+    x = np.asarray(x, dtype=float)
+    half = window // 2
+    out = np.empty_like(x)
+    out[half:len(x) - half] = np.convolve(x, savgol_weights(window, order)[::-1], mode="valid")
+    t = np.arange(-half, window - half, dtype=float)  # centred: a well-conditioned fit
+    fit = np.linalg.pinv(np.vander(t, order + 1, increasing=True))
+    head = np.vander(t[:half], order + 1, increasing=True)
+    tail = np.vander(t[window - half:], order + 1, increasing=True)
+    out[:half] = head @ (fit @ x[:window])
+    out[len(x) - half:] = tail @ (fit @ x[len(x) - window:])
+    return out
