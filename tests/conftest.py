@@ -1,6 +1,8 @@
 """Shared test fixtures and paths."""
 
 import math
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -8,6 +10,14 @@ from toywalk.model.parameters import Params
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "data"
+
+
+def loaded_by(code: str, *modules: str) -> dict[str, bool]:
+    """Which of ``modules`` a fresh interpreter has imported once it has run ``code``."""
+    probe = f"{code}\nimport sys\nprint(*[m in sys.modules for m in {list(modules)!r}])"
+    run = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr
+    return dict(zip(modules, (word == "True" for word in run.stdout.split()), strict=True))
 
 
 @pytest.fixture

@@ -1,12 +1,11 @@
 """The tracker's Savitzky-Golay smoother against scipy.signal's, the reference."""
 
-import subprocess
-import sys
-
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 from toywalk.tracking.smooth import savgol, savgol_weights
+
+from ..conftest import loaded_by
 
 
 @pytest.mark.parametrize("window, order", [(5, 2), (7, 3), (9, 2), (11, 4), (15, 3)])
@@ -34,9 +33,6 @@ def test_savgol_keeps_a_polynomial_of_its_order():
 def test_smoothing_does_not_load_scipy_stats():
     """The tracker smooths without scipy.signal, whose import brings scipy.stats (about a second
     in every tracking run)."""
-    code = ("import sys, numpy as np; from toywalk.tracking.smooth import smooth_signals; "
-            "t = np.arange(30) / 60; s = smooth_signals(t, {'a': np.sin(t)}, {'a': np.ones(30)}, [], 7, 3); "
-            "print('scipy.stats' in sys.modules, 'scipy.signal' in sys.modules)")
-    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
-    assert run.returncode == 0, run.stderr
-    assert run.stdout.strip() == "False False"
+    code = ("import numpy as np; from toywalk.tracking.smooth import smooth_signals; "
+            "t = np.arange(30) / 60; s = smooth_signals(t, {'a': np.sin(t)}, {'a': np.ones(30)}, [], 7, 3)")
+    assert loaded_by(code, "scipy.stats", "scipy.signal") == {"scipy.stats": False, "scipy.signal": False}
