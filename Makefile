@@ -15,7 +15,7 @@ $(STAMP): pyproject.toml
 
 # The compiled libraries, built side by side before anything needs them: processes started
 # together on an empty cache would each compile all of them (about 2 minutes each on 2 cores,
-# against 1 minute shared out; a few seconds once cached).
+# against 80-100 s shared out; under a second once cached).
 libraries: $(STAMP)
 	$(PY) -m toywalk.model.compiled --jobs 2
 

@@ -43,6 +43,8 @@ __all__ = ["LIBRARIES", "build_libraries", "cache_dir", "cached_functions", "cac
 # 326 against 310 us, a fold of 64 steps 8.0 against 7.7 ms); -O0 compiles in 8 s but runs 1.6 to
 # 4.5 times slower. Measured 2026-11-24 on this project's generated sources.
 _CFLAGS = ("-O1", "-fPIC", "-shared", "-fno-math-errno")
+#: Options of an external function that brings its own derivatives: never finite differences.
+_WITH_DERIVATIVES = {"enable_fd": False}
 
 
 def cache_dir() -> Path:
@@ -122,6 +124,25 @@ def cached_functions(name: str, variant: str, build: Callable[[], dict[str, ca.F
     verbose : bool
         Print one line to stderr when a compile is paid.
     """
+    return _cached(name, variant, build,
+                   lambda functions: _library(name, list(functions.values()), verbose), {})
+
+
+def cached_with_derivatives(variant: str, build: Callable[[], ca.Function],
+                            verbose: bool = True) -> ca.Function:
+    """:func:`compile_with_derivatives` of ``build()``, without calling ``build`` when its
+    library is cached (as :func:`cached_functions`; ``variant`` names the builder's arguments)."""
+    return _cached("derivatives", variant, lambda: {"fn": build()},
+                   lambda functions: _derivatives_library(functions["fn"], verbose),
+                   _WITH_DERIVATIVES)["fn"]
+
+
+def _cached(name: str, variant: str, build: Callable[[], dict[str, ca.Function]],
+            library: Callable[[dict[str, ca.Function]], Path | None],
+            options: dict) -> dict[str, ca.Function]:
+    """The functions ``build`` gives, loaded with ``options`` from the library that the index of
+    ``name, variant`` names; else built, their library found or compiled by ``library`` (None:
+    no compiler, the built functions serve) and the index written."""
     cc = _compiler()
     if cc is None:
         return dict(build())
@@ -130,30 +151,12 @@ def cached_functions(name: str, variant: str, build: Callable[[], dict[str, ca.F
     if found is not None:
         return found
     functions = build()
-    lib = _library(name, list(functions.values()), verbose)
+    lib = library(functions)
     if lib is None:
         return dict(functions)
-    _write_index(index, lib, {key_: fn.name() for key_, fn in functions.items()}, {})
-    return {key_: ca.external(fn.name(), str(lib)) for key_, fn in functions.items()}
-
-
-def cached_with_derivatives(variant: str, build: Callable[[], ca.Function],
-                            verbose: bool = True) -> ca.Function:
-    """:func:`compile_with_derivatives` of ``build()``, without calling ``build`` when its
-    library is cached (as :func:`cached_functions`; ``variant`` names the builder's arguments)."""
-    cc = _compiler()
-    if cc is None:
-        return build()
-    index = _index("derivatives", variant, cc)
-    found = _from_index(index)
-    if found is not None:
-        return found["fn"]
-    fn = build()
-    lib = _derivatives_library(fn, verbose)
-    if lib is None:
-        return fn
-    _write_index(index, lib, {"fn": fn.name()}, _WITH_DERIVATIVES)
-    return ca.external(fn.name(), str(lib), _WITH_DERIVATIVES)
+    names = {key_: fn.name() for key_, fn in functions.items()}
+    _write_index(index, lib, names, options)
+    return {key_: ca.external(fn_name, str(lib), options) for key_, fn_name in names.items()}
 
 
 def compile_functions(
@@ -205,10 +208,6 @@ def compile_with_derivatives(fn: ca.Function, verbose: bool = True) -> ca.Functi
     if lib is None:
         return fn
     return ca.external(fn.name(), str(lib), _WITH_DERIVATIVES)
-
-
-#: Options of an external function that brings its own derivatives: never finite differences.
-_WITH_DERIVATIVES = {"enable_fd": False}
 
 
 def _derivatives_library(fn: ca.Function, verbose: bool) -> Path | None:
@@ -290,9 +289,9 @@ def build_libraries(jobs: int = 2) -> dict[str, float]:
 
     Each process that needs a library compiles it where it is missing, so processes started
     together on an empty cache (the test suite's workers, a sampler's pool) each compile all of
-    them, one after another. Built first, ``jobs`` processes share them out: on 2 cores about
-    60 s against the 120 s each process would otherwise spend. With every library cached this
-    only loads them (a few seconds: the functions' code is generated and hashed).
+    them, one after another. Built first, ``jobs`` processes share them out: on 2 cores 80-100 s
+    (measured in `make test` from fresh clones, 2026-11-27) against about 120 s that each process
+    would otherwise spend. With every library cached and indexed this only loads them.
 
     Parameters
     ----------
