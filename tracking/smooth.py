@@ -63,9 +63,7 @@ def savgol_weights(window: int, order: int) -> np.ndarray:
     least-squares polynomial of degree ``order`` through ``window`` equally spaced samples
     (Savitzky & Golay 1964, Anal. Chem. 36:1627). scipy.signal.savgol_coeffs gives the same; this
     module does without scipy.signal, whose import takes about a second (it imports scipy.stats)."""
-    half = window // 2
-    vander = np.vander(np.arange(-half, half + 1, dtype=float), order + 1, increasing=True)
-    return np.linalg.pinv(vander)[0]
+    return _polynomial_fit(window, order)[1][0]
 
 
 def savgol(x: np.ndarray, window: int, order: int) -> np.ndarray:
@@ -74,12 +72,20 @@ def savgol(x: np.ndarray, window: int, order: int) -> np.ndarray:
     (scipy.signal.savgol_filter's ``mode="interp"``)."""
     x = np.asarray(x, dtype=float)
     half = window // 2
+    t, fit = _polynomial_fit(window, order)
     out = np.empty_like(x)
-    out[half:len(x) - half] = np.convolve(x, savgol_weights(window, order)[::-1], mode="valid")
-    t = np.arange(-half, window - half, dtype=float)  # centred: a well-conditioned fit
-    fit = np.linalg.pinv(np.vander(t, order + 1, increasing=True))
+    out[half:len(x) - half] = np.convolve(x, fit[0][::-1], mode="valid")
     head = np.vander(t[:half], order + 1, increasing=True)
     tail = np.vander(t[window - half:], order + 1, increasing=True)
     out[:half] = head @ (fit @ x[:window])
     out[len(x) - half:] = tail @ (fit @ x[len(x) - window:])
     return out
+
+
+def _polynomial_fit(window: int, order: int) -> tuple[np.ndarray, np.ndarray]:
+    """Sample positions t (window,) about the window's centre, and the least-squares map (order +
+    1, window) from ``window`` samples to the coefficients of the polynomial in t (centred: a
+    well-conditioned fit); its first row gives the value at the centre."""
+    half = window // 2
+    t = np.arange(-half, window - half, dtype=float)
+    return t, np.linalg.pinv(np.vander(t, order + 1, increasing=True))
