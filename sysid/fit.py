@@ -519,6 +519,7 @@ def _setup(table: TrajectoryTable, params: Params, free, *, model, offsets, n_in
     if not isinstance(params, Params):
         raise TypeError(f"params must be a Params, got {type(params).__name__}")
     free = _check_free(params, free)
+    priors = _check_priors(priors or {}, free, params)
     if model not in MODELS:
         raise FitError(f"model must be one of {', '.join(MODELS)}, got {model!r}")
     if strikes not in ("model", "measured"):
@@ -546,7 +547,6 @@ def _setup(table: TrajectoryTable, params: Params, free, *, model, offsets, n_in
     b_op = offsets_design(obs) if offsets else np.zeros((len(obs.value), len(OFFSETS)))
     model_step = model_steps(obs, prob.phases, prob.periodic)
     w0 = _feasible_start(prob, walker, z_first, side) if w_start is None else np.asarray(w_start, float)
-    priors = _check_priors(priors or {}, free, params)
     pth = path(obs, prob.phases, prob.periodic)
     problem = _Problem(prob, walker, free, obs, tm, b_op, model_step, offsets, max_iter,
                        check_jacobian, priors, side, strikes, pth)
