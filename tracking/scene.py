@@ -449,6 +449,7 @@ class Scene:
         self.background = self._draw_static(dictionary)
         self._home = (self.r_cam, self.t_cam, self.background)  # the pose it was drawn for
         self._reference = None  # static layers for a moved camera (see set_pose)
+        self._buffers = None  # and the arrays it is drawn in
         self._stale = False
 
     # a moving camera
@@ -497,11 +498,25 @@ class Scene:
             self._reference = (ramp, cover, sky, _plane_homography(k, self.r_cam, self.t_cam))
         ramp, cover, sky, h_ref = self._reference
         warp = _plane_homography(self.k_canvas, self.r_cam, self.t_cam) @ np.linalg.inv(h_ref)
-        ramp = cv2.warpPerspective(ramp, warp, (wc, hc), flags=cv2.INTER_LINEAR,
-                                   borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-        cover = cv2.warpPerspective(cover, warp, (wc, hc), flags=cv2.INTER_LINEAR,
-                                    borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-        return np.clip(ramp + sky * (1 - cover)[..., None] + 0.5, 0, 255).astype(np.uint8)
+        # ramp + sky (1 - cover), rounded, into arrays kept from call to call, with OpenCV's
+        # arithmetic: a moving camera asks for this at every instant drawn, and NumPy's, broadcasting
+        # the cover over the colours, took three times as long (the same image to the bit)
+        if self._buffers is None:
+            self._buffers = (np.empty((hc, wc, 3), np.float32), np.empty((hc, wc), np.float32),
+                             np.empty((hc, wc, 3), np.float32), np.empty((hc, wc, 3), np.uint8))
+        warped, uncovered, out, image = self._buffers
+        cv2.warpPerspective(ramp, warp, (wc, hc), dst=warped, flags=cv2.INTER_LINEAR,
+                            borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        cv2.warpPerspective(cover, warp, (wc, hc), dst=uncovered, flags=cv2.INTER_LINEAR,
+                            borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        np.subtract(1, uncovered, out=uncovered)
+        cv2.merge([uncovered] * 3, dst=out)
+        cv2.multiply(sky, out, dst=out)
+        cv2.add(out, warped, dst=out)
+        out += 0.5
+        np.clip(out, 0, 255, out=out)
+        np.copyto(image, out, casting="unsafe")  # truncated: rounded, with the 0.5 above
+        return image
 
     def _covered(self, h_ref: np.ndarray) -> bool:
         """Whether every corner of the canvas sees the ramp plane in front of the camera at a
@@ -586,8 +601,12 @@ class Scene:
         with np.errstate(divide="ignore", invalid="ignore"):
             s = -c[2] / dz
         hit = s > 0
-        px = np.where(hit, c[0] + s * dx, np.nan).astype(np.float32)
-        py = np.where(hit, c[1] + s * dy, np.nan).astype(np.float32)
+        px, py = s * dx, s * dy  # in place from here: these arrays are large (10-20 million samples)
+        del dx, dy, dz
+        px += c[0]
+        py += c[1]
+        px[~hit] = np.nan
+        py[~hit] = np.nan
         bg = _gradient(hc * ss, wc * ss)
         # ramp extent and wood texture
         ell, w = float(self.params.leg_length), float(self.params.hip_width)
@@ -608,11 +627,14 @@ class Scene:
         tu = (px - xr[0]) * ppm - 0.5
         tv = (yr[1] - py) * ppm - 0.5
         on_ramp = hit & (px >= xr[0]) & (px <= xr[1]) & (py >= yr[0]) & (py <= yr[1])
-        wood = cv2.remap(tex, np.nan_to_num(tu, nan=-10).astype(np.float32),
-                         np.nan_to_num(tv, nan=-10).astype(np.float32), cv2.INTER_LINEAR,
-                         borderMode=cv2.BORDER_REFLECT).astype(np.float32)
+        # samples off the ramp read one texel: the plane runs to the horizon, and reflecting its far
+        # coordinates into the texture made the remap read all over it (3x slower); their values
+        # are not used
+        wood = cv2.remap(tex, np.where(on_ramp, tu, np.float32(-10)), np.where(on_ramp, tv, np.float32(-10)),
+                         cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT).astype(np.float32)
         shade = float(self._shade(np.array([0.0, 0.0, 1.0])))
-        img = np.where(on_ramp[..., None], wood * shade, bg)
+        wood *= shade
+        img = cv2.copyTo(wood, on_ramp.view(np.uint8), bg)  # into bg, on the ramp
         hs, ws = img.shape[:2]
         for m in self.layout.on("ramp"):
             tex_m = _MarkerTexture(dictionary, m)
@@ -672,11 +694,16 @@ class Scene:
         poses = self.body_poses(state)
         if self.shadows:
             self._draw_shadow(img, poses, state)
-        items = []  # (depth, kind, payload), painted far to near
+        # painted far to near: the legs' faces, then each flag with its stem, in one stable order
+        polys, colours, depths = [], [], []
         for leg in ("L", "R"):
             rot, t = poses[leg]
-            uv, cols, depth = self._faces(self.meshes[leg], rot, t, state.rotation[leg])
-            items.extend((depth[i], 0, (uv[i], cols[i])) for i in range(len(depth)))
+            pts, cols, depth = self._faces(self.meshes[leg], rot, t, state.rotation[leg])
+            polys.extend(pts)
+            colours.extend(cols)
+            depths.append(depth)
+        n_faces = len(polys)
+        flags = []
         for leg in ("L", "R"):
             rot, t = poses[leg]
             rot_r = state.rotation[leg]
@@ -687,25 +714,26 @@ class Scene:
                 front = (rot @ normal) @ pc.mean(axis=0) < 0
                 lam = abs(float((rot_r @ normal) @ self.light))
                 shade_f = _AMBIENT + (1 - _AMBIENT) * lam
-                items.append((pc[:, 2].mean(), 1, (self._to_pixels(pc[None])[0], tex, front, shade_f,
-                                                   self._faces(stem, rot, t, rot_r))))
-        items.sort(key=lambda it: -it[0])
-        for _, kind, payload in items:
-            if kind == 0:
-                _fill(img, *payload)
+                flags.append((self._to_pixels(pc[None])[0], tex, front, shade_f,
+                              self._faces(stem, rot, t, rot_r)))
+                depths.append([pc[:, 2].mean()])
+        order = np.argsort(-np.concatenate(depths), kind="stable")
+        for i in order.tolist():
+            if i < n_faces:
+                cv2.fillConvexPoly(img, polys[i], colours[i], cv2.LINE_AA, _SHIFT)
                 continue
-            uvq, tex, front, shade_f, stem = payload
+            uvq, tex, front, shade_f, (stem_pts, stem_cols, stem_depth) = flags[i - n_faces]
             if not front:  # the flag's back, then the stem in front of it
                 _fill(img, uvq, [c * shade_f for c in _FLAG_BACK])
-            order = np.argsort(-stem[2])
-            for i in order:
-                _fill(img, stem[0][i], stem[1][i])
+            for j in np.argsort(-stem_depth).tolist():
+                cv2.fillConvexPoly(img, stem_pts[j], stem_cols[j], cv2.LINE_AA, _SHIFT)
             if front:  # the stem behind, then the printed face
                 _warp_flag(img, uvq, tex, shade_f)
         return img
 
     def _faces(self, mesh, rot, t, rot_r):
-        """Visible faces of a body-frame mesh: (pixels (f, 4, 2), colours (f, 3), depths (f,))."""
+        """Visible faces of a body-frame mesh: (fixed-point pixels for :func:`_fill`, a list of f
+        int32 arrays (4, 2); colours, a list of f BGR lists; depths (f,))."""
         quads, normals, colours, closed = mesh
         q = quads.reshape(-1, 3) @ rot.T + t
         q = q.reshape(-1, 4, 3)
@@ -715,7 +743,8 @@ class Scene:
         facing = np.einsum("ij,ij->i", n, centroid) < 0
         keep = (q[:, :, 2].min(axis=1) > _NEAR) & (facing | ~closed)
         shade = self._shade(np.where((facing | closed)[:, None], n_ramp, -n_ramp))
-        return self._to_pixels(q[keep]), colours[keep] * shade[keep, None], centroid[keep, 2]
+        pts = np.round(self._to_pixels(q[keep]) * (1 << _SHIFT)).astype(np.int32)
+        return list(pts), (colours[keep] * shade[keep, None]).tolist(), centroid[keep, 2]
 
     def _to_pixels(self, pts_cam: np.ndarray, k=None) -> np.ndarray:
         k = self.k_canvas if k is None else k
@@ -760,11 +789,11 @@ class Scene:
 
 def _gradient(rows: int, cols: int) -> np.ndarray:
     """The backdrop behind the ramp: a vertical grey-blue gradient, float32 (rows, cols, 3)."""
-    grad = np.linspace(0, 1, rows, dtype=np.float32)[:, None]
-    bg = np.empty((rows, cols, 3), np.float32)
+    grad = np.linspace(0, 1, rows, dtype=np.float32)
+    column = np.empty((rows, 1, 3), np.float32)
     for ch, (top, bottom) in enumerate(((190, 120), (180, 110), (170, 100))):
-        bg[..., ch] = top + (bottom - top) * grad
-    return bg
+        column[:, 0, ch] = top + (bottom - top) * grad
+    return np.repeat(column, cols, axis=1)
 
 
 def _plane_homography(k: np.ndarray, rot: np.ndarray, t: np.ndarray) -> np.ndarray:

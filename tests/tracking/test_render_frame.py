@@ -106,6 +106,39 @@ def test_a_following_camera_draws_the_ramp_from_where_it_stands(monkeypatch):
     assert np.abs(est.tvec - tvec).max() < 1e-3
 
 
+def test_a_moved_cameras_ramp_is_composited_as_numpy_would():
+    """The moved camera's static image, ramp + sky (1 - cover) rounded, is composited with
+    OpenCV's arithmetic in kept arrays; against the obvious NumPy expression of the same warps it
+    is the same to the bit (both round the same float32 sums), at two poses, the second reusing
+    the arrays, and the backdrop's gradient is the per-channel loop's."""
+    from toywalk.tracking.scene import _gradient
+
+    table = _walk(0.0, 1.4, 6.0)
+    camera, path, layout = default_filming(table, PARAMS)
+    film = Filming(table, PARAMS, camera, layout, RenderOptions(fps=10, start=2.8, duration=0.2), 0, path)
+    scene = film.scene
+    for t in (2.85, 2.9):  # not 2.8, the pose the scene was drawn for
+        scene.set_pose(*path.pose(t))
+        got = scene._static().copy()
+        ramp, cover, sky, h_ref = scene._reference
+        wc, hc = scene.canvas_size
+        warp = np.array(scene.k_canvas @ np.column_stack([scene.r_cam[:, 0], scene.r_cam[:, 1], scene.t_cam])
+                        @ np.linalg.inv(h_ref))
+        ramp_w = cv2.warpPerspective(ramp, warp, (wc, hc), flags=cv2.INTER_LINEAR,
+                                     borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        cover_w = cv2.warpPerspective(cover, warp, (wc, hc), flags=cv2.INTER_LINEAR,
+                                      borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        want = np.clip(ramp_w + sky * (1 - cover_w)[..., None] + 0.5, 0, 255).astype(np.uint8)
+        assert np.array_equal(got, want)
+        assert 0.05 < np.mean(cover_w) < 1.0  # both the ramp and the sky are in view
+    rows, cols = 37, 5
+    grad = np.linspace(0, 1, rows, dtype=np.float32)[:, None]
+    loop = np.empty((rows, cols, 3), np.float32)
+    for ch, (top, bottom) in enumerate(((190, 120), (180, 110), (170, 100))):
+        loop[..., ch] = top + (bottom - top) * grad
+    assert np.array_equal(_gradient(rows, cols), loop)
+
+
 def test_a_walker_passing_behind_a_given_camera_renders():
     """The walker walks past a camera standing on the ramp ahead of it, looking back up: some of
     its vertices are behind the camera at one end of a blurred frame's shutter and in front at
