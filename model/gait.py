@@ -17,6 +17,8 @@ first), and their eigenvalues are the stride map's (:meth:`Walker.cycle`).
 
 from __future__ import annotations
 
+import collections
+import copy
 import dataclasses
 import math
 from collections.abc import Sequence
@@ -421,6 +423,27 @@ def find_gait(params: Params, z_guess: np.ndarray | None = None, planar: bool | 
         raise ValueError(f"min_clearance must be a finite height (m) or None, got {min_clearance!r}")
     if planar is None:
         planar = is_planar_symmetric(params) and _lateral_singular(params)
+    if z_guess is not None:
+        return _find_gait(params, z_guess, planar, steps_per_time_unit, min_clearance)
+    # A search from nothing is deterministic: kept, so that the fits of one analysis that start
+    # from the same walker (a diagnosis: every candidate and held-out fold of each walk) search
+    # once. A copy each time: callers own what they are given.
+    key = (params, planar, steps_per_time_unit, min_clearance)
+    if key not in _FOUND:
+        _FOUND[key] = _find_gait(params, None, planar, steps_per_time_unit, min_clearance)
+        while len(_FOUND) > _FOUND_KEPT:
+            _FOUND.popitem(last=False)
+    _FOUND.move_to_end(key)
+    return copy.deepcopy(_FOUND[key])
+
+
+#: Gaits found from nothing, by (params, planar, steps_per_time_unit, min_clearance), latest last.
+_FOUND: collections.OrderedDict = collections.OrderedDict()
+_FOUND_KEPT = 16
+
+
+def _find_gait(params: Params, z_guess: np.ndarray | None, planar: bool, steps_per_time_unit: int,
+               min_clearance: float | None) -> Gait:
     refused: list[Gait] = []
     reasons: list[str] = []
     for gait in _gaits(params, z_guess, planar, steps_per_time_unit, reasons):

@@ -136,3 +136,28 @@ def test_find_gait_from_scratch_reaches_the_shipped_gaits(name, max_abs):
     assert abs(gait.max_abs_eigenvalue - max_abs) < 1e-5  # six digits as documented
     if name == "stable-toy":
         assert gait.stable
+
+
+def test_a_search_from_nothing_is_kept_and_each_caller_owns_its_copy(monkeypatch):
+    """find_gait without a guess is deterministic, so a second call for the same walker is served
+    from the first (a diagnosis starts every candidate's and fold's fit from the same walker):
+    no step is integrated, the gait is equal to the digit, and changing the one returned does not
+    change the next. Another walker, or a guess, is searched again."""
+    import toywalk.model.gait as gait_module
+
+    params = load_params(DATA / "params" / "compass-3d.toml")
+    monkeypatch.setattr(gait_module, "_FOUND", type(gait_module._FOUND)())
+    first = find_gait(params)
+    solved = []
+    real = gait_module.solve_fixed_point
+    monkeypatch.setattr(gait_module, "solve_fixed_point", lambda *a, **k: solved.append(1) or real(*a, **k))
+    found = first.fixed_point.copy()
+    first.fixed_point[:] = 0.0  # the caller's own copy
+    again = find_gait(params)
+    assert solved == []
+    assert np.array_equal(again.fixed_point, found) and again.step_time == first.step_time
+    find_gait(params.replace(slope=1.01 * params.slope))
+    assert solved, "another walker is searched"
+    solved.clear()
+    find_gait(params, z_guess=again.fixed_point)
+    assert solved, "a guess is followed, not looked up"
