@@ -37,6 +37,7 @@ The procedure, and the rule that decides (``alpha`` is the family-wise false-ala
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
 import time
@@ -53,8 +54,8 @@ from .residuals import ResidualReport, feature_misfit, missed_features, residual
 from .sample import worker_pool
 
 __all__ = ["ALPHA", "MAX_EXTENDED", "PARAMETERS", "SEPARATION", "Candidate", "Diagnosis",
-           "DiagnoseError", "Verdict", "candidates", "complete_rows", "diagnose", "held_out", "held_out_fits",
-           "held_out_score", "held_out_tasks", "lr_p_value", "run_fits"]
+           "DiagnoseError", "FitPool", "Verdict", "candidates", "complete_rows", "diagnose", "held_out",
+           "held_out_fits", "held_out_score", "held_out_tasks", "lr_p_value", "run_fits"]
 
 #: Family-wise false-alarm rate of the verdict.
 ALPHA = 0.01
@@ -391,16 +392,54 @@ def _restarted(task: dict, start) -> dict:
     return dict(task, warm=start, **({} if params is None else {"params": params}))
 
 
-def run_fits(tasks: list[dict], workers: int = 1, scheduler: str | None = None, runner=None) -> list:
+class FitPool:
+    """Where an analysis runs its batches of fits (:func:`run_fits`): in this process, in
+    ``workers`` local processes, or on a Dask cluster (``scheduler``).
+
+    The processes (or the cluster's client) are started for the first batch of more than one fit
+    and kept for the next ones until the ``with`` block ends: a spawned worker imports the model,
+    loads its compiled functions and searches each walk's starting gait (kept by
+    :func:`toywalk.model.gait.find_gait`) once an analysis, not once a batch.
+    """
+
+    def __init__(self, workers: int = 1, scheduler: str | None = None):
+        self.workers, self.scheduler = workers, scheduler
+        self._stack = contextlib.ExitStack()
+        self._pool = None
+
+    def __enter__(self) -> FitPool:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._pool = None
+        self._stack.close()
+
+    @property
+    def started(self) -> bool:
+        """Whether processes (or a client) serve the batches."""
+        return self._pool is not None
+
+    def map(self, runner, tasks: list) -> list:
+        """``[runner(t) for t in tasks]``, side by side when there is more than one task."""
+        if len(tasks) <= 1 or (self.workers <= 1 and not self.scheduler):
+            return [runner(t) for t in tasks]
+        if self._pool is None:
+            self._pool = self._stack.enter_context(worker_pool(self.workers, self.scheduler))
+        return list(self._pool.map(runner, tasks))
+
+
+def run_fits(tasks: list[dict], workers: int | FitPool = 1, scheduler: str | None = None,
+             runner=None) -> list:
     """``runner`` (default :func:`toywalk.sysid.fit.fit`, a fit that cannot be set up giving its
     reason, a string, in its place) of each task's keyword arguments: in this process, in
-    ``workers`` local processes, or on a Dask cluster (``scheduler``). ``runner`` must be a
-    module-level function, so that worker processes can unpickle it."""
+    ``workers`` local processes, or on a Dask cluster (``scheduler``); or in an analysis's
+    :class:`FitPool` given as ``workers``. ``runner`` must be a module-level function, so that
+    worker processes can unpickle it."""
     runner = runner or _fit_or_reason
-    if len(tasks) <= 1 or (workers <= 1 and not scheduler):
-        return [runner(t) for t in tasks]
-    with worker_pool(min(workers, len(tasks)), scheduler) as pool:
-        return list(pool.map(runner, tasks))
+    if isinstance(workers, FitPool):
+        return workers.map(runner, tasks)
+    with FitPool(min(workers, len(tasks)), scheduler) as pool:
+        return pool.map(runner, tasks)
 
 
 def _fit_or_reason(task: dict):
@@ -451,6 +490,13 @@ def diagnose(table: TrajectoryTable, params: Params, *, free=(), effects=None, p
     **fit_options
         Passed to every fit (``offsets``, ``priors``, ``strikes``, ...).
     """
+    with FitPool(workers, scheduler) as pool:
+        return _diagnose(table, params, free=free, effects=effects, parameters=parameters, alpha=alpha,
+                         model=model, progress=progress, workers=pool, **fit_options)
+
+
+def _diagnose(table: TrajectoryTable, params: Params, *, free, effects, parameters, alpha: float,
+              model: str, progress, workers: FitPool, scheduler: None = None, **fit_options) -> Diagnosis:
     say = progress or (lambda _msg: None)
     clock = time.perf_counter()
     seconds: dict = {}

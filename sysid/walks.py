@@ -43,6 +43,7 @@ from .discrepancy import (
     SEPARATION,
     Candidate,
     DiagnoseError,
+    FitPool,
     Verdict,
     _masked,
     _strides,
@@ -465,6 +466,15 @@ def diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], 
     ``workers`` processes or a Dask ``scheduler`` run the candidates' fits side by side, and the
     held-out folds' four); ``fit_options`` go to :func:`fit_walks`.
     """
+    with FitPool(workers, scheduler) as pool:
+        return _diagnose_walks(tables, params, free=free, effects=effects, parameters=parameters,
+                               alpha=alpha, noise_sd=noise_sd, progress=progress, workers=pool,
+                               **fit_options)
+
+
+def _diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], *, free, effects,
+                    parameters, alpha: float, noise_sd: dict | None, progress, workers: FitPool,
+                    scheduler: None = None, **fit_options) -> WalksDiagnosis:
     say = progress or (lambda _msg: None)
     clock = time.perf_counter()
     if not 0 < alpha < 1:

@@ -189,3 +189,39 @@ def test_the_noise_of_the_scatter_is_chosen_signal_by_signal():
     white = {n: v["sd"] for n, v in scatter_noise(obs).items()}
     noise, taken, _ = discrepancy._scatter_check(obs, base)
     assert noise == white and taken == list(white)
+
+
+def test_an_analysis_starts_its_processes_once(monkeypatch):
+    """A diagnosis runs batches of fits (the candidates, the held-out folds, their retries) in one
+    :class:`FitPool`: its processes are started for the first batch of more than one task and
+    serve the next, and a batch of one runs here. (Each start spawns interpreters that import the
+    model and search each walk's starting gait again.)"""
+    import contextlib
+    import os
+
+    from toywalk.sysid.sample import worker_pool
+
+    started = []
+
+    @contextlib.contextmanager
+    def counted(workers, scheduler):
+        started.append(workers)
+        with worker_pool(workers, scheduler) as pool:
+            yield pool
+
+    monkeypatch.setattr(discrepancy, "worker_pool", counted)
+    with discrepancy.FitPool(2) as pool:
+        assert discrepancy.run_fits([-3], pool, runner=abs) == [3] and not pool.started
+        assert discrepancy.run_fits([-1, -2, 5], pool, runner=abs) == [1, 2, 5]
+        pids = set(discrepancy.run_fits([0] * 6, pool, runner=_pid))
+        assert started == [2] and pool.started
+    assert not pool.started
+    assert len(pids) <= 2 and os.getpid() not in pids  # the batches ran in the pool's processes
+    # without an analysis's pool, each batch starts its own, sized to the batch
+    assert discrepancy.run_fits([-1, -2], 3, runner=abs) == [1, 2] and started == [2, 2]
+
+
+def _pid(_task) -> int:
+    import os
+
+    return os.getpid()
