@@ -158,15 +158,19 @@ class LogPosterior:
     def _cache(self) -> list:
         return _WARM.setdefault(self._token, [])
 
-    def _start(self, theta: np.ndarray) -> np.ndarray:
+    def _start(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        """The nearest solved gait's fixed point and its map's Jacobian, else the start's (no
+        Jacobian)."""
         cache = self._cache
         if not cache:
-            return self.z_start
-        dist = [np.sum(((t - theta) / np.maximum(np.abs(t), 1e-12)) ** 2) for t, _ in cache]
-        return cache[int(np.argmin(dist))][1]
+            return self.z_start, None
+        dist = [np.sum(((t - theta) / np.maximum(np.abs(t), 1e-12)) ** 2) for t, _, _ in cache]
+        _, z, jac = cache[int(np.argmin(dist))]
+        return z, jac
 
     def gait(self, theta: np.ndarray, warm: bool = True):
-        """The gait at ``theta`` (Newton from the nearest solved gait, else the start), or None."""
+        """The gait at ``theta`` (from the nearest solved gait by chord steps with its Jacobian,
+        Newton where they stall, else Newton from the start), or None."""
         try:
             walker_params = with_values(self.params, self.free,
                                         dict(zip(self.free, map(float, theta), strict=True)))
@@ -174,14 +178,14 @@ class LogPosterior:
             return None, None
         walker = Walker(walker_params, planar=self.planar, period=self.period)
         starts = [self._start(theta)] if warm else []
-        if not any(s is self.z_start for s in starts):
-            starts.append(self.z_start)
-        for z0 in starts:
+        if not any(z is self.z_start for z, _ in starts):
+            starts.append((self.z_start, None))
+        for z0, jac in starts:
             try:
-                gait = solve_fixed_point(walker, z0)
+                gait = solve_fixed_point(walker, z0, jacobian=jac)
             except GaitNotFound:
                 continue
-            self._cache.append((np.array(theta, float), gait.fixed_point.copy()))
+            self._cache.append((np.array(theta, float), gait.fixed_point.copy(), gait.map_jacobian))
             del self._cache[:-_CACHE]
             return gait, walker
         return None, walker

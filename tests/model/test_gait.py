@@ -161,3 +161,29 @@ def test_a_search_from_nothing_is_kept_and_each_caller_owns_its_copy(monkeypatch
     solved.clear()
     find_gait(params, z_guess=again.fixed_point)
     assert solved, "a guess is followed, not looked up"
+
+
+def test_chord_steps_from_a_neighbours_jacobian_reach_newtons_gait(monkeypatch):
+    """A posterior's next draw is a walker near one already solved: chord steps holding the
+    neighbour's map Jacobian (each one map evaluation without derivatives) reach the gait Newton
+    reaches, to round-off, and derivatives are evaluated once, for the gait's eigenvalues. A
+    held Jacobian that does not contract (zero: plain fixed-point iteration, which this gait's
+    eigenvalues near 1 make crawl) hands over to Newton, which still gets there."""
+    params = load_params(DATA / "params" / "compass-3d.toml")
+    near = find_gait(params)
+    walker = Walker(params.replace(slope=1.01 * params.slope))
+    newton = solve_fixed_point(walker, near.fixed_point)
+    derivatives = []
+    real = Walker.cycle
+    monkeypatch.setattr(Walker, "cycle", lambda self, z, jacobian=False, **k:
+                        derivatives.append(jacobian) or real(self, z, jacobian, **k))
+    chord = solve_fixed_point(walker, near.fixed_point, jacobian=near.map_jacobian)
+    # both converged to the 1e-11 tolerance and polished: they agree far below it
+    assert_allclose(chord.fixed_point, newton.fixed_point, rtol=0, atol=1e-12)
+    assert_allclose(chord.eigenvalues, newton.eigenvalues, rtol=0, atol=1e-9)
+    assert sum(derivatives) == 1 and len(derivatives) <= 14  # measured: 1 of 10 (8 chord steps)
+    assert chord.iterations == len(derivatives) - 2  # the start's evaluation and the gait's
+    derivatives.clear()
+    stalled = solve_fixed_point(walker, near.fixed_point, jacobian=np.zeros((8, 8)))
+    assert_allclose(stalled.fixed_point, newton.fixed_point, rtol=0, atol=1e-12)
+    assert sum(derivatives) >= 2  # Newton took over
