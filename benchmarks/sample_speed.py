@@ -100,10 +100,10 @@ def bench_workers(report, table, folder: Path) -> dict:
         elapsed = time.perf_counter() - t
         out[f"workers_{k}"] = {"time_s": elapsed, "per_evaluation_s": elapsed / (walkers * (steps + 1))}
     out["speedup_2_vs_1"] = out["workers_1"]["time_s"] / out["workers_2"]["time_s"]
-    from toywalk.sysid.sample import _pool
+    from toywalk.sysid.sample import worker_pool
 
     t = time.perf_counter()
-    with _pool(2, None) as pool:
+    with worker_pool(2, None) as pool:
         pool.map(abs, [1, 2])  # the first task waits for both processes to start
     out["pool_start_s"] = time.perf_counter() - t
     return out
