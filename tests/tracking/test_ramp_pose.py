@@ -227,7 +227,7 @@ def test_track_refuses_a_camera_file_placed_elsewhere(stable_walk, tmp_path):
 def test_a_long_walk_tracked_from_a_following_camera_meets_the_targets(tmp_path):
     """The issue's second walk: 16 steps of data/params/toy-sized.toml (simulate seed 5, 1.37 m of
     travel; render seed 77), which leaves any fixed view, so render's default camera follows the
-    walker (358 frames, about 70 s to render). Tracked as the README says, without --camera:
+    walker (358 frames, about 40 s to render). Tracked as the README says, without --camera:
     each frame's own ramp pose from the markers, every frame but one tracked (frame 17, near a
     strike, is a gap), and the targets met (measured: lean 0.042, steer 0.063, pitches 0.140 and
     0.053 deg RMS; the 15 strikes inside the clip at 0.05 frame RMS)."""
