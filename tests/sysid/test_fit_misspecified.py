@@ -10,7 +10,7 @@ from toywalk.model.trajectory import read_trajectory
 from toywalk.sysid.fit import fit, periodicity_test
 
 from ..conftest import DATA
-from .test_fit import _run
+from .test_fit import _run, _walk
 
 FREE = ["foot_radius", "com_offset[1]"]
 TOY = DATA / "params" / "stable-toy.toml"
@@ -64,3 +64,20 @@ def test_periodicity_test_converges_on_a_misspecified_walk_without_noise(tmp_pat
     # a biased estimate and fails the divergent one (1.6e4 m).
     truth = meta["source"]["parameter_values"]["com_offset[1]"]
     assert abs(chosen.estimates["com_offset[1]"] - truth) < 0.2
+
+
+def test_a_fit_says_when_its_residuals_are_mostly_misfit():
+    """Noise taken from the residuals holds whatever the model misses, and the standard errors
+    then assume there is no misfit. The fit compares each signal's residual RMS with the samples'
+    own scatter within steps: a trailing share of 0.1 the model lacks leaves the pitches 2.5-2.7
+    times their scatter (measured), said in a warning; the same walker without it, nothing."""
+    toy = load_params(DATA / "params" / "stable-toy.toml")
+    free = ["foot_radius", "com_offset[1]"]
+    table, _ = _walk(toy.replace(**{"effects.impact_trailing_share": 0.1}), 10, 0.002, 3)
+    missing = fit(table, toy, free, check_jacobian=False)
+    assert missing.noise_source == "estimated from residuals"
+    note = [w for w in missing.warnings if "the model misses the walk" in w]
+    assert len(note) == 1 and "pitch_left" in note[0] and "lean" not in note[0], missing.warnings
+    table, _ = _walk(toy, 10, 0.002, 3)
+    fitting = fit(table, toy, free, check_jacobian=False)
+    assert not any("the model misses the walk" in w for w in fitting.warnings), fitting.warnings
