@@ -13,6 +13,7 @@ released off its cycle fitted as a gait gives biased parameters. ``--model perio
 from __future__ import annotations
 
 import math
+import sys
 
 __all__ = ["cmd_fit", "register"]
 
@@ -77,16 +78,19 @@ def cmd_fit(args) -> int:
     options = dict(offsets=not args.no_offsets, n_intervals=args.intervals, priors=priors,
                    strikes=args.strikes)
     test = starts = None
+    say = _progress()
     try:
         if args.multistart is not None:
             starts = _multi_start(table, params, free, args, options)
             params = starts.best.params
         if args.model == "auto":
-            test = periodicity_test(table, params, free, **options)
+            test = periodicity_test(table, params, free, progress=say, **options)
             result = test.chosen
         elif starts is not None:
             result = starts.best
         else:
+            say(f"the {args.model} model, on {'its own' if args.strikes == 'model' else 'the measured'} "
+                "heel strikes")
             result = fit(table, params, free, model=args.model, **options)
     except FitError as err:
         raise CommandError(str(err)) from err
@@ -120,8 +124,6 @@ def cmd_fit(args) -> int:
         print(f"warning: {note}")
     print(f"{result.status} in {result.iterations} iterations -> {out}")
     if not result.success:
-        import sys
-
         hint = (" (a model far from the walk may converge aligned on the measured heel strikes: "
                 "--strikes measured)" if args.strikes == "model" else "")
         print(f"toywalk fit: the fit did not succeed ({result.status} after {result.iterations} "
@@ -129,6 +131,15 @@ def cmd_fit(args) -> int:
               f"usable optimum{hint}", file=sys.stderr)
         return 1
     return 0
+
+
+def _progress():
+    """A line on stderr before each fit when a person watches (a terminal): a long walk's fits
+    take minutes (60 steps of the stable toy: 86 s periodic, the periodicity test's several more).
+    Nothing when stderr is a file or a pipe, so that scripts see only the command's own output."""
+    if not sys.stderr.isatty():
+        return lambda _msg: None
+    return lambda msg: print(f"toywalk fit: {msg} ...", file=sys.stderr, flush=True)
 
 
 def _multi_start(table, params, free, args, options):

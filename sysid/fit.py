@@ -113,30 +113,34 @@ _NEAR_SINGULAR = 1e-6
 _NEWTON_STEPS, _NEWTON_TOL = 10, 1e-12
 
 
-def _misfit_note(obs: Observations, rms: dict) -> str:
-    """What to say when the residuals, taken as the noise, are mostly the model's misfit: the
-    signals whose residual RMS is more than :data:`toywalk.sysid.discrepancy.NOISE_INFLATION`
-    times their samples' own scatter within steps (:func:`toywalk.sysid.residuals.scatter_noise`,
-    the larger of its every-sample and alternate-sample values: noise a tracker smoothed is
-    larger than its every-sample scatter says, a fast pitch's curvature makes the alternate one
-    larger than the noise); empty when none is. Measured: a 10-step stable-toy walk with a
-    trailing share of 0.1 the model lacks, 0.002 rad of noise: pitch residuals 2.5 times their
-    scatter; 60 steps of it: steer and pitches 15-17 times, the fit (``--model periodic``) ending
-    with a pitch offset of 3 degrees, its standard errors as if the model fitted."""
+def _misfit_note(obs: Observations, rms: dict, stated: dict | None = None) -> str:
+    """What to say when the residuals are mostly the model's misfit (empty when they are not):
+    the signals whose residual RMS is more than :data:`toywalk.sysid.discrepancy.NOISE_INFLATION`
+    times their noise SD, ``stated`` (given, or the file's, a median per signal), else their
+    samples' own scatter within steps (:func:`toywalk.sysid.residuals.scatter_noise`, the larger
+    of its every-sample and alternate-sample values: noise a tracker smoothed is larger than its
+    every-sample scatter says, a fast pitch's curvature makes the alternate one larger than the
+    noise), the noise then being taken from the residuals, misfit and all. Measured: a 10-step
+    stable-toy walk with a trailing share of 0.1 the model lacks, 0.002 rad of noise: pitch
+    residuals 2.5 times their scatter; 60 steps of it: steer and pitches 15-17 times, the fit
+    (``--model periodic``) ending with a pitch offset of 3 degrees; in each case standard errors
+    as if the model fitted."""
     from .discrepancy import NOISE_INFLATION
     from .residuals import scatter_noise
 
-    over = []
-    for name, v in scatter_noise(obs).items():
-        sd = np.nanmax([v["sd"], v["sd_alternate"]])
-        if name in rms and sd > 0 and rms[name] > NOISE_INFLATION * sd:
-            over.append(f"{name} {rms[name] / sd:.2g}")
+    if stated is None:
+        reference = {n: float(np.nanmax([v["sd"], v["sd_alternate"]])) for n, v in scatter_noise(obs).items()}
+        against = "the samples' scatter within steps"
+    else:
+        reference, against = stated, "the noise SDs stated"
+    over = [f"{name} {rms[name] / sd:.2g}" for name, sd in reference.items()
+            if name in rms and sd > 0 and rms[name] > NOISE_INFLATION * sd]
     if not over:
         return ""
-    return (f"the residual RMS is many times the samples' scatter within steps ({', '.join(over)} "
-            "times): the model misses the walk, the noise SDs taken from the residuals hold that "
-            "misfit, and the standard errors assume there is none; `toywalk diagnose` looks for "
-            "what the model lacks")
+    held = "the noise SDs taken from the residuals hold that misfit, and " if stated is None else ""
+    return (f"the residual RMS is many times {against} ({', '.join(over)} times): the model misses "
+            f"the walk, {held}the standard errors assume there is no misfit; `toywalk diagnose` "
+            "looks for what the model lacks")
 
 
 def _ipopt_options(max_iter: int) -> dict:
@@ -1021,10 +1025,9 @@ class _Problem:
             rms["strike_time"] = float(np.sqrt(np.mean((strikes - self.tm.strike_rel) ** 2)))
         noise = {name: float(np.median(sigma[:self.n_obs][obs.signal == s_i]))
                  for s_i, name in enumerate(SIGNALS) if np.any(obs.signal == s_i)}
-        if noise_source == "estimated from residuals":
-            note = _misfit_note(obs, rms)
-            if note:
-                notes.append(note)
+        note = _misfit_note(obs, rms, None if noise_source == "estimated from residuals" else noise)
+        if note:
+            notes.append(note)
         if self.path.n:
             rms.update(self.contact_rms(x))
             sd_c = sigma[self.n_obs:].reshape(2, -1)
@@ -1240,7 +1243,7 @@ class PeriodicityTest:
 
 
 def periodicity_test(table: TrajectoryTable, params: Params, free, *,
-                     alpha: float = PERIODICITY_ALPHA, **options) -> PeriodicityTest:
+                     alpha: float = PERIODICITY_ALPHA, progress=None, **options) -> PeriodicityTest:
     """Fit the walk with both models and say whether the periodic one is appropriate.
 
     A walk released off its cycle (or leaving an unstable one) is not a repeated gait: fitting it
@@ -1264,9 +1267,12 @@ def periodicity_test(table: TrajectoryTable, params: Params, free, *,
         As :func:`fit`.
     alpha : float
         False-alarm rate, in (0, 1).
+    progress : callable, optional
+        Called with one line of text before each of its fits (a long walk's take minutes).
     **options
         Passed to both fits (``offsets``, ``priors``, ``check_jacobian``, ...; not ``model``).
     """
+    say = progress or (lambda _msg: None)
     if not 0 < alpha < 1:
         raise FitError(f"alpha must be in (0, 1), got {alpha!r}")
     if "model" in options:
@@ -1278,7 +1284,9 @@ def periodicity_test(table: TrajectoryTable, params: Params, free, *,
     final = {k: v for k, v in options.items() if k != "strikes"}
     strikes = options.get("strikes", "model")
     quick = dict(final, strikes="measured", check_jacobian=False)
+    say("periodicity test: the periodic model, aligned on the measured heel strikes")
     periodic = fit(table, params, free, model="periodic", **quick)
+    say("periodicity test: the transient model (a free start), aligned on the measured heel strikes")
     transient = fit(table, periodic.params if periodic.success else params, free,
                     model="transient", **quick)
     if transient.noise_source == "estimated from residuals":
@@ -1287,6 +1295,7 @@ def periodicity_test(table: TrajectoryTable, params: Params, free, *,
         # offsets and the contacts' origin at zero under the tight contact SDs of exact
         # positions, IPOPT diverged (measured: stable-toy, 10 steps, trailing share 0.1 hidden,
         # no noise: 500 iterations, 21 s, com_offset[1] at 1.6e4 m, and no test).
+        say("periodicity test: the periodic model again, with the transient's noise")
         periodic = fit(table, periodic.params if periodic.success else params, free,
                        model="periodic", **dict(quick, noise_sd=transient.noise_sd),
                        warm=periodic if periodic.success else None)
@@ -1304,6 +1313,7 @@ def periodicity_test(table: TrajectoryTable, params: Params, free, *,
         steps = step_dependence(obs, periodic.residuals[:len(obs.value)])
         appropriate = bool(steps["p"] >= alpha)  # untestable (NaN): the likelihood ratio decides
     chosen = periodic if appropriate else transient
+    say(f"the {chosen.model} model, on {'its own' if strikes == 'model' else 'the measured'} heel strikes")
     refit = fit(table, chosen.params, free, model=chosen.model, strikes=strikes, **final)
     shown = "" if steps is None else (f"F = {steps['F']:.3g} on {steps['dfn']} and {steps['dfd']} "
                                       f"degrees of freedom, p = {steps['p']:.2g}")

@@ -69,8 +69,9 @@ def test_periodicity_test_converges_on_a_misspecified_walk_without_noise(tmp_pat
 def test_a_fit_says_when_its_residuals_are_mostly_misfit():
     """Noise taken from the residuals holds whatever the model misses, and the standard errors
     then assume there is no misfit. The fit compares each signal's residual RMS with the samples'
-    own scatter within steps: a trailing share of 0.1 the model lacks leaves the pitches 2.5-2.7
-    times their scatter (measured), said in a warning; the same walker without it, nothing."""
+    own scatter within steps, or with the noise SDs where they are stated: a trailing share of 0.1
+    the model lacks leaves the pitches 2.5-2.7 times their scatter (measured), said in a warning;
+    the same walker without it, nothing."""
     toy = load_params(DATA / "params" / "stable-toy.toml")
     free = ["foot_radius", "com_offset[1]"]
     table, _ = _walk(toy.replace(**{"effects.impact_trailing_share": 0.1}), 10, 0.002, 3)
@@ -78,6 +79,15 @@ def test_a_fit_says_when_its_residuals_are_mostly_misfit():
     assert missing.noise_source == "estimated from residuals"
     note = [w for w in missing.warnings if "the model misses the walk" in w]
     assert len(note) == 1 and "pitch_left" in note[0] and "lean" not in note[0], missing.warnings
+    # with the noise stated (0.002 rad, the truth) the residuals are weighed against it:
+    # pitches 3.2 times (measured through `toywalk fit` on a `simulate --noise 0.002` file)
+    stated = fit(table, toy, free, check_jacobian=False, noise_sd=dict.fromkeys(
+        ("lean", "steer", "pitch_left", "pitch_right"), 0.002))
+    note = [w for w in stated.warnings if "the model misses the walk" in w]
+    assert len(note) == 1 and "the noise SDs stated (pitch_left" in note[0], stated.warnings
     table, _ = _walk(toy, 10, 0.002, 3)
     fitting = fit(table, toy, free, check_jacobian=False)
+    assert not any("the model misses the walk" in w for w in fitting.warnings), fitting.warnings
+    fitting = fit(table, toy, free, check_jacobian=False, noise_sd=dict.fromkeys(
+        ("lean", "steer", "pitch_left", "pitch_right"), 0.002))
     assert not any("the model misses the walk" in w for w in fitting.warnings), fitting.warnings

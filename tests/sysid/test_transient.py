@@ -131,7 +131,12 @@ def test_a_walk_on_its_cycle_that_the_model_misfits_stays_periodic(toy):
     (there F = 1300)."""
     truth = toy.replace(**{"effects.rolling_resistance": 2e-4})
     table, _ = _walk(truth, 12, 0.002, 5711)
-    test = periodicity_test(table, toy, [])
+    said = []
+    test = periodicity_test(table, toy, [], progress=said.append)
+    # a line before each fit (toywalk fit prints them in a terminal: a long walk's take minutes)
+    assert [m.split(":")[0] if m.startswith("periodicity") else m for m in said] == [
+        "periodicity test", "periodicity test", "periodicity test",
+        "the periodic model, on its own heel strikes"], said
     assert test.p_value < test.alpha, test.message  # the likelihood ratio alone would reject
     assert test.step_dependence["p"] >= test.alpha and test.appropriate is True, test.message
     assert test.chosen is test.periodic and test.chosen.model == "periodic"
