@@ -17,9 +17,9 @@ first), and their eigenvalues are the stride map's (:meth:`Walker.cycle`).
 
 from __future__ import annotations
 
-import collections
 import copy
 import dataclasses
+import functools
 import math
 from collections.abc import Sequence
 
@@ -498,18 +498,13 @@ def find_gait(params: Params, z_guess: np.ndarray | None = None, planar: bool | 
     # A search from nothing is deterministic: kept, so that the fits of one analysis that start
     # from the same walker (a diagnosis: every candidate and held-out fold of each walk) search
     # once. A copy each time: callers own what they are given.
-    key = (params, planar, steps_per_time_unit, min_clearance)
-    if key not in _FOUND:
-        _FOUND[key] = _find_gait(params, None, planar, steps_per_time_unit, min_clearance)
-        while len(_FOUND) > _FOUND_KEPT:
-            _FOUND.popitem(last=False)
-    _FOUND.move_to_end(key)
-    return copy.deepcopy(_FOUND[key])
+    return copy.deepcopy(_found(params, planar, steps_per_time_unit, min_clearance))
 
 
-#: Gaits found from nothing, by (params, planar, steps_per_time_unit, min_clearance), latest last.
-_FOUND: collections.OrderedDict = collections.OrderedDict()
-_FOUND_KEPT = 16
+@functools.lru_cache(maxsize=16)
+def _found(params: Params, planar: bool, steps_per_time_unit: int, min_clearance: float | None) -> Gait:
+    """:func:`find_gait` from nothing, its 16 latest searches kept (a failed one is not)."""
+    return _find_gait(params, None, planar, steps_per_time_unit, min_clearance)
 
 
 def _find_gait(params: Params, z_guess: np.ndarray | None, planar: bool, steps_per_time_unit: int,

@@ -146,7 +146,7 @@ def test_a_search_from_nothing_is_kept_and_each_caller_owns_its_copy(monkeypatch
     import toywalk.model.gait as gait_module
 
     params = load_params(DATA / "params" / "compass-3d.toml")
-    monkeypatch.setattr(gait_module, "_FOUND", type(gait_module._FOUND)())
+    gait_module._found.cache_clear()
     first = find_gait(params)
     solved = []
     real = gait_module.solve_fixed_point
