@@ -492,11 +492,11 @@ def diagnose(table: TrajectoryTable, params: Params, *, free=(), effects=None, p
     """
     with FitPool(workers, scheduler) as pool:
         return _diagnose(table, params, free=free, effects=effects, parameters=parameters, alpha=alpha,
-                         model=model, progress=progress, workers=pool, **fit_options)
+                         model=model, progress=progress, pool=pool, **fit_options)
 
 
 def _diagnose(table: TrajectoryTable, params: Params, *, free, effects, parameters, alpha: float,
-              model: str, progress, workers: FitPool, scheduler: None = None, **fit_options) -> Diagnosis:
+              model: str, progress, pool: FitPool, **fit_options) -> Diagnosis:
     say = progress or (lambda _msg: None)
     clock = time.perf_counter()
     seconds: dict = {}
@@ -576,7 +576,7 @@ def _diagnose(table: TrajectoryTable, params: Params, *, free, effects, paramete
     say(f"extended fits: {', '.join(r['effect'] for r in to_fit)}")
     tasks = [dict(table=table, params=base.params, free=free + [row["effect"]], check_jacobian=False,
                   warm=base, **candidate_options, **noise_opt) for row in to_fit]
-    for row, ext in zip(to_fit, run_fits(tasks, workers, scheduler), strict=True):
+    for row, ext in zip(to_fit, run_fits(tasks, pool), strict=True):
         name = row["effect"]
         if isinstance(ext, str):
             row.update(fitted=False, reason=ext)
@@ -601,7 +601,7 @@ def _diagnose(table: TrajectoryTable, params: Params, *, free, effects, paramete
                  + held_out_tasks(table, extended[best["effect"]].params, free + [best["effect"]],
                                   noise, extended[best["effect"]], **options))
         lap = time.perf_counter()
-        fits = held_out_fits(tasks, workers, scheduler)
+        fits = held_out_fits(tasks, pool)
         seconds["held_out"] = time.perf_counter() - lap
         held["base"] = held_out_score(table, fits[:2], noise)
         held[best["effect"]] = held_out_score(table, fits[2:], noise)

@@ -468,13 +468,13 @@ def diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], 
     """
     with FitPool(workers, scheduler) as pool:
         return _diagnose_walks(tables, params, free=free, effects=effects, parameters=parameters,
-                               alpha=alpha, noise_sd=noise_sd, progress=progress, workers=pool,
+                               alpha=alpha, noise_sd=noise_sd, progress=progress, pool=pool,
                                **fit_options)
 
 
 def _diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], *, free, effects,
-                    parameters, alpha: float, noise_sd: dict | None, progress, workers: FitPool,
-                    scheduler: None = None, **fit_options) -> WalksDiagnosis:
+                    parameters, alpha: float, noise_sd: dict | None, progress, pool: FitPool,
+                    **fit_options) -> WalksDiagnosis:
     say = progress or (lambda _msg: None)
     clock = time.perf_counter()
     if not 0 < alpha < 1:
@@ -523,7 +523,7 @@ def _diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params],
         say(f"fitting {', '.join(c.name for c in chosen)} on all walks")
     tasks = [dict(tables=tables, params=list(params), free=free + [c.name], noise_sd=noise_sd,
                   warm=base if base.success else None, **fit_options) for c in chosen]
-    for c, f in zip(chosen, run_fits(tasks, workers, scheduler, _fit_walks_or_reason), strict=True):
+    for c, f in zip(chosen, run_fits(tasks, pool, runner=_fit_walks_or_reason), strict=True):
         if isinstance(f, str):
             say(f"{c.name}: {f}")
         else:
@@ -569,7 +569,7 @@ def _diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params],
             named_fit = extended[lead["effect"]]
             tasks = (_held_out_walk_tasks(tables, params, base, **fit_options)
                      + _held_out_walk_tasks(tables, params, named_fit, **fit_options))
-            fits = held_out_fits(tasks, workers, scheduler, _fit_walks_or_reason)
+            fits = held_out_fits(tasks, pool, runner=_fit_walks_or_reason)
             held = {"base": _held_out_walk_score(tables, base, fits[:2]),
                     lead["effect"]: _held_out_walk_score(tables, named_fit, fits[2:])}
             held_gain = held["base"]["chi2"] - held[lead["effect"]]["chi2"]
