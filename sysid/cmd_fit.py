@@ -54,7 +54,7 @@ def cmd_fit(args) -> int:
     from toywalk.model.files import atomic_write_json
     from toywalk.model.trajectory import read_trajectory
     from toywalk.sysid.cli import CommandError, _load, _version, output_path
-    from toywalk.sysid.fit import CONTACT_KEYS, FitError, fit, periodicity_test
+    from toywalk.sysid.fit import CONTACT_KEYS, FitError, _fit_line, fit, periodicity_test
 
     out = output_path(args.out, (".json",))
     if args.intervals is not None and args.intervals < 4:
@@ -89,8 +89,7 @@ def cmd_fit(args) -> int:
         elif starts is not None:
             result = starts.best
         else:
-            say(f"the {args.model} model, on {'its own' if args.strikes == 'model' else 'the measured'} "
-                "heel strikes")
+            say(_fit_line(args.model, args.strikes))
             result = fit(table, params, free, model=args.model, **options)
     except FitError as err:
         raise CommandError(str(err)) from err

@@ -50,7 +50,14 @@ from toywalk.model.trajectory import SIGNALS, TrajectoryTable
 
 from .fit import FitError, FitResult, fit, fit_bounds, gait_period, score_tests
 from .measurement import observations
-from .residuals import ResidualReport, feature_misfit, missed_features, residual_report, scatter_noise
+from .residuals import (
+    NOISE_INFLATION,
+    ResidualReport,
+    feature_misfit,
+    missed_features,
+    residual_report,
+    scatter_noise,
+)
 from .sample import worker_pool
 
 __all__ = ["ALPHA", "MAX_EXTENDED", "PARAMETERS", "SEPARATION", "Candidate", "Diagnosis",
@@ -85,16 +92,11 @@ _HELD_OUT_SD = 1e3
 #: "acceptable" exit 8 to 15 times the noise, from which the analysis named the slope.
 ANOTHER_MINIMUM = 2.0
 #: When the walk gives no noise SD, the base fit's residual RMS stands for it unless it is more
-#: than this many times the samples' own scatter (:func:`toywalk.sysid.residuals.scatter_noise`):
-#: then it is mostly the base model's misfit, and the scatter is the noise. The scatter of a
-#: 12-step walk at 140 samples/s is the true SD within 0.099 (1 SD; tests/sysid/test_residuals.py),
-#: so a base model that fits reaches 2 only where the scatter is 5 SDs low; the point-foot base
-#: of a round-footed walker gives 11 to 64 (docs/diagnosis.md, "The seed's story").
-NOISE_INFLATION = 2.0
-#: ...provided the scatter over every other sample is at most this many times that over every
-#: sample: noise correlated from sample to sample has less scatter than its SD, and is not used
-#: (on the same walks: 4 % of white signals exceed it, and 83 % of signals whose noise is a
-#: three-sample running mean).
+#: than :data:`toywalk.sysid.residuals.NOISE_INFLATION` times the samples' own scatter: then it is
+#: mostly the base model's misfit, and the scatter is the noise, provided the scatter over every
+#: other sample is at most this many times that over every sample: noise correlated from sample to
+#: sample has less scatter than its SD, and is not used (on 12-step walks at 140 samples/s: 4 % of
+#: white signals exceed it, and 83 % of signals whose noise is a three-sample running mean).
 NOISE_WHITENESS = 1.3
 #: The kinds of signal whose noise is judged together (:func:`_scatter_check`).
 _NOISE_GROUPS = (("lean",), ("steer",), ("pitch_left", "pitch_right"))

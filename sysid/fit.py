@@ -70,7 +70,7 @@ from .measurement import (
     path,
     timing,
 )
-from .residuals import step_dependence
+from .residuals import NOISE_INFLATION, scatter_noise, step_dependence
 
 __all__ = ["CONTACT_KEYS", "MODELS", "FitError", "FitResult", "PeriodicityTest", "fit", "fit_bounds",
            "gait_period", "held_jacobian", "parameter_bounds", "periodicity_test", "score_statistics",
@@ -115,7 +115,7 @@ _NEWTON_STEPS, _NEWTON_TOL = 10, 1e-12
 
 def _misfit_note(obs: Observations, rms: dict, stated: dict | None = None) -> str:
     """What to say when the residuals are mostly the model's misfit (empty when they are not):
-    the signals whose residual RMS is more than :data:`toywalk.sysid.discrepancy.NOISE_INFLATION`
+    the signals whose residual RMS is more than :data:`toywalk.sysid.residuals.NOISE_INFLATION`
     times their noise SD, ``stated`` (given, or the file's, a median per signal), else their
     samples' own scatter within steps (:func:`toywalk.sysid.residuals.scatter_noise`, the larger
     of its every-sample and alternate-sample values: noise a tracker smoothed is larger than its
@@ -125,9 +125,6 @@ def _misfit_note(obs: Observations, rms: dict, stated: dict | None = None) -> st
     residuals 2.5 times their scatter; 60 steps of it: steer and pitches 15-17 times, the fit
     (``--model periodic``) ending with a pitch offset of 3 degrees; in each case standard errors
     as if the model fitted."""
-    from .discrepancy import NOISE_INFLATION
-    from .residuals import scatter_noise
-
     if stated is None:
         reference = {n: float(np.nanmax([v["sd"], v["sd_alternate"]])) for n, v in scatter_noise(obs).items()}
         against = "the samples' scatter within steps"
@@ -1242,6 +1239,11 @@ class PeriodicityTest:
                 {k: self.step_dependence[k] for k in ("F", "dfn", "dfd", "p")}}
 
 
+def _fit_line(model: str, strikes: str) -> str:
+    """A fit as a progress line names it: its model and the heel strikes it reads the walk on."""
+    return f"the {model} model, on {'its own' if strikes == 'model' else 'the measured'} heel strikes"
+
+
 def periodicity_test(table: TrajectoryTable, params: Params, free, *,
                      alpha: float = PERIODICITY_ALPHA, progress=None, **options) -> PeriodicityTest:
     """Fit the walk with both models and say whether the periodic one is appropriate.
@@ -1313,7 +1315,7 @@ def periodicity_test(table: TrajectoryTable, params: Params, free, *,
         steps = step_dependence(obs, periodic.residuals[:len(obs.value)])
         appropriate = bool(steps["p"] >= alpha)  # untestable (NaN): the likelihood ratio decides
     chosen = periodic if appropriate else transient
-    say(f"the {chosen.model} model, on {'its own' if strikes == 'model' else 'the measured'} heel strikes")
+    say(_fit_line(chosen.model, strikes))
     refit = fit(table, chosen.params, free, model=chosen.model, strikes=strikes, **final)
     shown = "" if steps is None else (f"F = {steps['F']:.3g} on {steps['dfn']} and {steps['dfd']} "
                                       f"degrees of freedom, p = {steps['p']:.2g}")

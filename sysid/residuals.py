@@ -38,9 +38,9 @@ from toywalk.model.trajectory import SIGNALS
 
 from .measurement import Observations
 
-__all__ = ["COMPONENTS", "FEATURES", "SCATTER_ORDER", "ResidualReport", "feature_misfit", "finite_mean",
-           "missed_features", "phase_bins", "residual_report", "scatter_noise", "step_dependence",
-           "step_features"]
+__all__ = ["COMPONENTS", "FEATURES", "NOISE_INFLATION", "SCATTER_ORDER", "ResidualReport", "feature_misfit",
+           "finite_mean", "missed_features", "phase_bins", "residual_report", "scatter_noise",
+           "step_dependence", "step_features"]
 
 #: Per-step gait features (:func:`step_features`), with their unit.
 FEATURES = {"duration": "s", "lean_range": "rad", "steer_range": "rad", "steer_mean": "rad",
@@ -64,6 +64,12 @@ _MIN_DEGREE = 2
 #: stable toy's swing pitch (0.3 rad at 2.5 Hz) filmed at 60 frames/s, 1.7e-4 rad, 0.4 % of a
 #: 2 mrad noise in quadrature; a 3rd difference would add 17 %.
 SCATTER_ORDER = 4
+#: A residual RMS more than this many times a signal's noise SD (its samples' own scatter,
+#: :func:`scatter_noise`, or an SD stated) is mostly the model's misfit. The scatter of a 12-step
+#: walk at 140 samples/s is the true SD within 0.099 (1 SD; tests/sysid/test_residuals.py), so a
+#: model that fits reaches 2 only where the scatter is 5 SDs low; the point-foot base of a
+#: round-footed walker gives 11 to 64 (docs/diagnosis.md, "The seed's story").
+NOISE_INFLATION = 2.0
 
 
 @dataclasses.dataclass

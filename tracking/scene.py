@@ -500,7 +500,8 @@ class Scene:
         warp = _plane_homography(self.k_canvas, self.r_cam, self.t_cam) @ np.linalg.inv(h_ref)
         # ramp + sky (1 - cover), rounded, into arrays kept from call to call, with OpenCV's
         # arithmetic: a moving camera asks for this at every instant drawn, and NumPy's, broadcasting
-        # the cover over the colours, took three times as long (the same image to the bit)
+        # the cover over the colours into new arrays, took 2.4 times as long (10.8 against 4.5 ms
+        # at 1330 x 760, one thread; the same image to the bit)
         if self._buffers is None:
             self._buffers = (np.empty((hc, wc, 3), np.float32), np.empty((hc, wc), np.float32),
                              np.empty((hc, wc, 3), np.float32), np.empty((hc, wc, 3), np.uint8))
