@@ -294,7 +294,10 @@ def solve_fixed_point(walker: Walker, z0: np.ndarray, tol: float = _NEWTON_TOL,
     if walker.planar:
         z[:4] = 0.0
     if jacobian is not None:
-        z, chords, converged = _chord(walker, z, np.asarray(jacobian, float), active, scale, tol)
+        jacobian = np.asarray(jacobian, float)
+        if jacobian.shape != (8, 8) or not np.all(np.isfinite(jacobian)):
+            raise ValueError(f"jacobian must be a finite (8, 8) map Jacobian, got shape {jacobian.shape}")
+        z, chords, converged = _chord(walker, z, jacobian, active, scale, tol)
         if converged:
             return _make_gait(walker, z, chords)
     try:

@@ -187,3 +187,6 @@ def test_chord_steps_from_a_neighbours_jacobian_reach_newtons_gait(monkeypatch):
     stalled = solve_fixed_point(walker, near.fixed_point, jacobian=np.zeros((8, 8)))
     assert_allclose(stalled.fixed_point, newton.fixed_point, rtol=0, atol=1e-12)
     assert sum(derivatives) >= 2  # Newton took over
+    for bad in (np.eye(4), np.full((8, 8), np.nan)):
+        with pytest.raises(ValueError, match="finite .8, 8. map Jacobian"):
+            solve_fixed_point(walker, near.fixed_point, jacobian=bad)
