@@ -134,7 +134,8 @@ def cmd_fit(args) -> int:
 
 def _progress():
     """A line on stderr before each fit when a person watches (a terminal): a long walk's fits
-    take minutes (60 steps of the stable toy: 86 s periodic, the periodicity test's several more).
+    take minutes (60 steps of the stable toy: 1 minute periodic, 3 by default with the periodicity
+    test).
     Nothing when stderr is a file or a pipe, so that scripts see only the command's own output."""
     if not sys.stderr.isatty():
         return lambda _msg: None

@@ -111,6 +111,8 @@ _NEAR_SINGULAR = 1e-6
 #: Newton's re-solve of the BVP for the Jacobian check (``_Problem._resolve``): at most this many
 #: steps, done when every equality is within the BVP solver's own constraint tolerance (1e-12).
 _NEWTON_STEPS, _NEWTON_TOL = 10, 1e-12
+#: Newton steps taken after the equalities are within that tolerance (``_Problem._resolve``).
+_POLISH = 2
 
 
 def _misfit_note(obs: Observations, rms: dict, stated: dict | None = None) -> str:
@@ -663,7 +665,17 @@ class _Problem:
         n_d = 2 * prob.phases if pth.n else 0
         n_t = n_d * prob.n_int
         self.lift_cols = np.arange(n_w + n_f + n_o + n_c, n_w + n_f + n_o + n_c + n_d + n_t)
-        x = ca.MX.sym("x", n_w + n_f + n_o + n_c + n_d + n_t + 1)
+        # A transient walk's model strikes (s) are unknowns too, tied to the step durations and
+        # the time offset by equalities (measurement.Timing.clock_links): written through the
+        # durations, every sample depends on every step before its own, and the misfit's
+        # Hessian fills in (measured on stable-toy with a trailing share of 0.1: IPOPT's solver
+        # for 20 steps took 24 s to build, 1.8 s with the clock; the transient fit of 60 steps
+        # ran more than 9.5 minutes, 30 s with the clock). A periodic fit's one or two step
+        # durations need no clock.
+        n_k = 0 if prob.periodic else obs.n_steps + 1
+        n_before = n_w + n_f + n_o + n_c + n_d + n_t
+        self.clock_cols = np.arange(n_before, n_before + n_k)
+        x = ca.MX.sym("x", n_w + n_f + n_o + n_c + n_d + n_t + n_k + 1)
         w, delta, off = x[:n_w], x[n_w:n_w + n_f], x[n_w + n_f:n_w + n_f + n_o]
         origin = x[n_w + n_f + n_o:n_w + n_f + n_o + n_c] * self.c_scale
         disp = x[self.lift_cols[:n_d]] if n_d else ca.MX(0, 1)
@@ -683,9 +695,10 @@ class _Problem:
         inv_sd_all = ca.MX.sym("inv_sd", self.n_obs + 2 * pth.n)
         inv_sd, inv_sd_c = inv_sd_all[:self.n_obs], inv_sd_all[self.n_obs:]
         durations = ca.vertcat(*[w[prob.duration_index(j)] for j in range(prob.phases)])
-        model = tm.values(w, durations, time_offset) + ca.mtimes(ca.DM(b_op), off)
+        clock = x[self.clock_cols] if n_k else None
+        model = tm.values(w, durations, time_offset, clock) + ca.mtimes(ca.DM(b_op), off)
         r_ang = (model - ca.DM(obs.value)) * inv_sd
-        strikes = tm.strikes(durations, time_offset)
+        strikes = tm.strikes(durations, time_offset) if clock is None else clock
         self.strikes_fn = ca.Function("strikes", [x], [strikes])
         r_dur = (strikes - ca.DM(tm.strike_rel)) / ca.DM(obs.strike_sd)
         theta = ca.DM(self.theta0) + ca.DM(self.scale) * delta
@@ -731,6 +744,9 @@ class _Problem:
             g = ca.vertcat(g, trav - ca.vec(rolled) / self.c_scale,
                            disp - ca.mtimes(summed, trav) - ca.vec(jump) / self.c_scale)
             self.lbg, self.ubg = np.r_[self.lbg, np.zeros(n_d + n_t)], np.r_[self.ubg, np.zeros(n_d + n_t)]
+        if n_k:
+            g = ca.vertcat(g, tm.clock_links(clock, durations, time_offset))
+            self.lbg, self.ubg = np.r_[self.lbg, np.zeros(n_k)], np.r_[self.ubg, np.zeros(n_k)]
         # The NLP as a function, so that several walks' NLPs can be joined into one
         # (toywalk.sysid.walks: shared parameters, each walk its own gait and nuisances).
         self.nlp_fn = ca.Function("nlp", [x, ca.vertcat(inv_sd_all, stage)], [f, g])
@@ -770,8 +786,20 @@ class _Problem:
 
     def start(self, w0: np.ndarray) -> np.ndarray:
         """The NLP's start from a gait ``w0`` at the starting parameters (nuisances at zero)."""
-        return np.concatenate([w0, np.zeros(len(self.free) + len(OFFSETS) + len(POSITION_NUISANCES)),
-                               self.lifted(w0, self.theta0), [0.0]])
+        return self.clocked(np.concatenate([
+            w0, np.zeros(len(self.free) + len(OFFSETS) + len(POSITION_NUISANCES)),
+            self.lifted(w0, self.theta0), np.zeros(len(self.clock_cols)), [0.0]]))
+
+    def durations(self, x: np.ndarray) -> np.ndarray:
+        """The model steps' durations (s), shape (phases,)."""
+        return np.array([x[self.prob.duration_index(j)] for j in range(self.prob.phases)])
+
+    def clocked(self, x: np.ndarray) -> np.ndarray:
+        """``x`` with its clock (a transient's model strikes) set from its durations and time
+        offset, where the equalities put it."""
+        x = x.copy()
+        x[self.clock_cols] = self.tm.strikes(self.durations(x), x[-1] * self.t_scale)[:len(self.clock_cols)]
+        return x
 
     def theta(self, x: np.ndarray) -> np.ndarray:
         """The free parameters, clipped into their bounds (IPOPT may end a hair outside one)."""
@@ -892,6 +920,11 @@ class _Problem:
         j_off = jr[:, self.n_w + n_f:self.n_w + n_f + n_o].toarray()
         j_origin = jr[:, self.n_w + n_f + n_o:self.n_w + n_f + n_o + n_c].toarray() / self.c_scale
         j_time = jr[:, -1:].toarray() / self.t_scale
+        if len(self.clock_cols):  # the clock follows the durations and the time offset
+            j_clock = jr[:, self.clock_cols]
+            rows = [prob.duration_index(j) for j in range(prob.phases)]
+            j_model += j_clock @ (self.tm.strikes_before @ dw[rows])
+            j_time += np.asarray(j_clock.sum(axis=1))
         if not self.offsets:
             j_off = j_off[:, :0]
         if not self.path.n:
@@ -903,26 +936,33 @@ class _Problem:
     def _resolve(self, x: np.ndarray, theta: np.ndarray) -> np.ndarray | None:
         """The BVP's unknowns at parameters ``theta`` from ``x``'s (a transient's free start held),
         or None: IPOPT first, then Newton on the equalities in the unknowns that are not held (the
-        square system :meth:`jacobian` differentiates). IPOPT alone stopped at once with a
-        restoration failure for a transient's start held, even at the unperturbed parameters
-        where ``x`` satisfies the equalities to 2e-14 (the README's walk, clearing-toy filmed at
-        120 frames/s, ``fit`` by default): its Jacobian was never checked. Newton from ``x``
-        converges there in two or three steps; the result rests on the equalities only, not on
-        the derivatives the check tests."""
+        square system :meth:`jacobian` differentiates), from IPOPT's solution or, where IPOPT
+        failed, from ``x``. IPOPT alone stopped at once with a restoration failure for a
+        transient's start held, even at the unperturbed parameters where ``x`` satisfies the
+        equalities to 2e-14 (the README's walk, clearing-toy filmed at 120 frames/s, ``fit`` by
+        default): its Jacobian was never checked. Newton from ``x`` converges there in two or
+        three steps. Where IPOPT succeeds, its equalities hold to its tolerance while its unknowns
+        can stand off the root along the BVP's ill-conditioned directions, and a central
+        difference divides that by the step: :data:`_POLISH` Newton steps more land on the root
+        (measured on a 12-step transient fit of stable-toy, foot radius: the check 1.5e-5
+        relative, erratic with the step size, and 4e-9 polished). The result rests on the
+        equalities only, not on the derivatives the check tests."""
         w0, p = x[:self.n_w], self.p_full(theta)
         lbx, ubx = np.full(self.n_w, -np.inf), np.full(self.n_w, np.inf)
         lbx[self.start_free] = ubx[self.start_free] = w0[self.start_free]
         sol = self.prob.solver(x0=w0, p=p, lbg=self.prob.lbg, ubg=self.prob.ubg, lbx=lbx, ubx=ubx)
-        if self.prob.solver.stats()["success"]:
-            return np.array(sol["x"]).ravel()
-        w, n_eq = w0.copy(), self.prob.n_equalities
+        w = np.array(sol["x"]).ravel() if self.prob.solver.stats()["success"] else w0.copy()
+        n_eq = self.prob.n_equalities
         dep = np.setdiff1d(np.arange(self.n_w), self.start_free)
-        for _ in range(_NEWTON_STEPS):
+        polish = 0
+        for _ in range(_NEWTON_STEPS + _POLISH):
             g = np.array(self.prob.constraints(w, p)).ravel()[:n_eq]
             if not np.all(np.isfinite(g)):
                 return None
             if np.max(np.abs(g)) <= _NEWTON_TOL:
-                return w
+                if polish == _POLISH:
+                    return w
+                polish += 1
             g_w = _sparse(_equality_jacobians(self.prob)(w, p)[0]).tocsc()
             w[dep] -= splu(g_w[:, dep]).solve(g)
         return None
@@ -944,6 +984,7 @@ class _Problem:
                 xs = x.copy()
                 xs[:self.n_w] = w
                 xs[self.lift_cols] = self.lifted(xs[:self.n_w], th)
+                xs = self.clocked(xs)
                 xs[self.n_w + j] += sign * h / self.scale[j]
                 cols.append(self.whitened(xs, sigma))
             if len(cols) < 2:
@@ -1109,7 +1150,7 @@ def _continued(problem: _Problem, w0: np.ndarray, result: FitResult) -> np.ndarr
         x[k:k + len(POSITION_NUISANCES)] = np.array([est[o] for o in POSITION_NUISANCES]) / problem.c_scale
     if problem.stage == 1.0 and "time_offset" in est:
         x[-1] = est["time_offset"] / problem.t_scale
-    return x
+    return problem.clocked(x)
 
 
 def score_tests(table: TrajectoryTable, result: FitResult, names) -> dict:
@@ -1199,7 +1240,8 @@ class PeriodicityTest:
     delta_chi2 : float
         ``chi2_periodic - chi2_transient`` (>= 0: the models nest) of the two models aligned on
         the measured strikes, with one noise model (the file's SDs, or the transient fit's
-        residual RMS: it holds whichever model is true).
+        residual RMS: it holds whichever model is true), each fit at its optimum under it (with
+        the residual RMS, both fitted again with those SDs held: ``noise_source`` 'given').
     dof : int
         Free directions of the transient's start (``n_dyn - 1``).
     p_value : float
@@ -1213,6 +1255,9 @@ class PeriodicityTest:
         Whether the periodic fit's residuals change from step to step
         (:func:`toywalk.sysid.residuals.step_dependence`: ``F``, ``dfn``, ``dfd``, ``p``), made
         when the likelihood ratio rejects the periodic model.
+    chi2 : dict of str to float
+        The chi-square of the test's ``periodic`` and ``transient`` fits (the fit chosen is then
+        fitted again as asked, with a chi-square of its own).
     """
 
     periodic: FitResult
@@ -1224,6 +1269,7 @@ class PeriodicityTest:
     appropriate: bool | None
     message: str
     step_dependence: dict | None = None
+    chi2: dict = dataclasses.field(default_factory=dict)
 
     @property
     def chosen(self) -> FitResult:
@@ -1234,7 +1280,7 @@ class PeriodicityTest:
         return {"delta_chi2": self.delta_chi2, "dof": self.dof, "p_value": self.p_value,
                 "alpha": self.alpha, "periodic_appropriate": self.appropriate,
                 "message": self.message, "chosen": self.chosen.model,
-                "chi2": {"periodic": self.periodic.chi2, "transient": self.transient.chi2},
+                "chi2": dict(self.chi2),
                 "step_dependence": None if self.step_dependence is None else
                 {k: self.step_dependence[k] for k in ("F", "dfn", "dfd", "p")}}
 
@@ -1292,22 +1338,32 @@ def periodicity_test(table: TrajectoryTable, params: Params, free, *,
     transient = fit(table, periodic.params if periodic.success else params, free,
                     model="transient", **quick)
     if transient.noise_source == "estimated from residuals":
-        # One noise model for both, the transient's: the periodic fit again with its SDs, from
-        # its own solution (only the weights change). From a fresh start at its estimates, the
-        # offsets and the contacts' origin at zero under the tight contact SDs of exact
-        # positions, IPOPT diverged (measured: stable-toy, 10 steps, trailing share 0.1 hidden,
-        # no noise: 500 iterations, 21 s, com_offset[1] at 1.6e4 m, and no test).
+        # One noise model for both, the transient's, and each fit at its optimum under it: the
+        # transient's last pass was weighted by the noise of the pass before, and the likelihood
+        # ratio of a fit off its optimum can come out negative (measured: the 60-step walk of
+        # benchmarks/diagnose_speed.py, chi-square 4275.9 against the periodic's 4261.3). Each
+        # again with these SDs, from its own solution (only the weights change). The periodic
+        # one from a fresh start at its estimates, the offsets and the contacts' origin at zero
+        # under the tight contact SDs of exact positions, IPOPT diverged (measured: stable-toy,
+        # 10 steps, trailing share 0.1 hidden, no noise: 500 iterations, 21 s, com_offset[1] at
+        # 1.6e4 m, and no test).
+        if transient.success:
+            say("periodicity test: the transient model again, with its own noise")
+            transient = fit(table, transient.params, free, model="transient",
+                            **dict(quick, noise_sd=transient.noise_sd), warm=transient)
         say("periodicity test: the periodic model again, with the transient's noise")
         periodic = fit(table, periodic.params if periodic.success else params, free,
                        model="periodic", **dict(quick, noise_sd=transient.noise_sd),
                        warm=periodic if periodic.success else None)
     dof = transient.start_dof
     delta = max(periodic.chi2 - transient.chi2, 0.0)
+    chi2 = {"periodic": periodic.chi2, "transient": transient.chi2}
     p_value = float(special.chdtrc(dof, delta))
     if not (periodic.success and transient.success):
         failed = [f"{r.model} ({r.status})" for r in (periodic, transient) if not r.success]
         return PeriodicityTest(periodic, transient, delta, dof, p_value, alpha, None,
-                               f"no test: the {' and the '.join(failed)} fit did not converge")
+                               f"no test: the {' and the '.join(failed)} fit did not converge",
+                               chi2=chi2)
     appropriate = p_value >= alpha
     steps = None
     if not appropriate:
@@ -1338,7 +1394,8 @@ def periodicity_test(table: TrajectoryTable, params: Params, free, *,
         message = (f"the walk is not on the model's limit cycle: a free start lowers chi-square by "
                    f"{delta:.4g} on {dof} degrees of freedom (p = {p_value:.2g} < {alpha:g}){repeated}; "
                    "the periodic fit is not appropriate, use the transient one")
-    return PeriodicityTest(periodic, transient, delta, dof, p_value, alpha, appropriate, message, steps)
+    return PeriodicityTest(periodic, transient, delta, dof, p_value, alpha, appropriate, message, steps,
+                           chi2)
 
 
 def estimates_only(estimates: dict, free) -> dict:

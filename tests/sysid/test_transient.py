@@ -135,7 +135,7 @@ def test_a_walk_on_its_cycle_that_the_model_misfits_stays_periodic(toy):
     test = periodicity_test(table, toy, [], progress=said.append)
     # a line before each fit (toywalk fit prints them in a terminal: a long walk's take minutes)
     assert [m.split(":")[0] if m.startswith("periodicity") else m for m in said] == [
-        "periodicity test", "periodicity test", "periodicity test",
+        "periodicity test", "periodicity test", "periodicity test", "periodicity test",
         "the periodic model, on its own heel strikes"], said
     assert test.p_value < test.alpha, test.message  # the likelihood ratio alone would reject
     assert test.step_dependence["p"] >= test.alpha and test.appropriate is True, test.message
@@ -195,3 +195,66 @@ def test_the_jacobian_check_re_solves_by_newton_where_ipopt_stops(toy, monkeypat
     for name in RECOVERED:  # the same residuals re-solved two ways: the same differences
         assert abs(by_newton.jacobian_check[name] - by_ipopt.jacobian_check[name]) < 1e-7, (
             name, by_newton.jacobian_check, by_ipopt.jacobian_check)
+
+
+def _transient_problem(params, steps):
+    """The transient fit's NLP of a released walk of ``steps`` steps, on the model's strikes, at
+    its start (a time offset of 2 ms, so that the clock's path through the offset is seen)."""
+    from toywalk.sysid.fit import _setup
+
+    table, _ = _released(params, steps, 0.002, 1)
+    problem, w0 = _setup(table, params, ["foot_radius"], model="transient", offsets=True,
+                         n_intervals=None, degree=None, z_guess=None, max_iter=500,
+                         check_jacobian=False, priors={}, strikes="model")
+    x = problem.start(w0)
+    x[-1] = 0.002 / problem.t_scale
+    return problem, problem.clocked(x)
+
+
+def test_a_transient_fits_clock_keeps_its_hessian_sparse_and_its_derivatives_exact(toy):
+    """A transient fit reads every sample between the model's heel strikes, which are the time
+    offset plus every step duration before them. Held as unknowns of their own (the clock, tied
+    to the durations by equalities), they keep the misfit's Hessian growing with the walk's
+    length, not with its square (without them the 60-step walk of benchmarks/diagnose_speed.py
+    built its solver for more than nine minutes). Checked: the Hessian's size against the
+    steps; the clock where its equalities put it; the model's angles read through the clock
+    against the same reading through the durations in NumPy; the time offset's column of the
+    fit's Jacobian (the clock's path) against central differences."""
+    import casadi as ca
+    from toywalk.sysid.measurement import Timing
+
+    sizes = {}
+    for steps in (4, 12):
+        problem, x = _transient_problem(toy, steps)
+        nlp = problem._nlp[0]
+        sizes[steps] = ca.hessian(nlp["f"], nlp["x"])[0].nnz()
+    # Linear: three times the steps, three times the non-zeros (measured 3.00); through the
+    # durations the duration-by-state blocks grow with the square (measured 4.41 without the
+    # clock).
+    assert sizes[12] / sizes[4] < 3.3, sizes
+    problem, x = _transient_problem(toy, 8)
+    tm: Timing = problem.tm
+    g = np.array(problem.nlp_fn(x, np.r_[np.ones(problem.n_obs + 2 * problem.path.n), 1.0])[1]).ravel()
+    n_k = len(problem.clock_cols)
+    assert n_k == 9
+    assert_allclose(g[-n_k:], 0.0, atol=1e-14)  # the clock's equalities hold at the clocked start
+    # The angles through the clock (CasADi) against the durations' own reading (NumPy).
+    w, durations, offset = x[:problem.n_w], problem.durations(x), x[-1] * problem.t_scale
+    by_numpy = tm.values(w, durations, offset) + problem.b_op @ problem.offsets_of(x)
+    assert_allclose(np.array(problem.angles_fn(x, 1.0)).ravel(), by_numpy, rtol=0, atol=1e-13)
+    # The check can fail: a clock a millisecond off moves the angles.
+    moved = x.copy()
+    moved[problem.clock_cols[3]] += 1e-3
+    assert np.abs(np.array(problem.angles_fn(moved, 1.0)).ravel() - by_numpy).max() > 1e-4
+    # d(residuals)/d(time offset) through the clock: central differences, the clock re-set.
+    sigma = np.full(problem.n_obs, 0.002)
+    jac = problem.jacobian(x, sigma)
+    h = 1e-6
+    cols = []
+    for sign in (1.0, -1.0):
+        xs = x.copy()
+        xs[-1] += sign * h / problem.t_scale
+        cols.append(problem.whitened(problem.clocked(xs), sigma))
+    fd = (cols[0] - cols[1]) / (2 * h)
+    # central differences of a smooth function at h = 1 us: truncation and round-off 1e-6 relative
+    assert np.linalg.norm(jac[:, -1] - fd) < 1e-6 * np.linalg.norm(fd)
