@@ -6,8 +6,9 @@ copy (``M.smoothed.csv`` and its companions), and optionally an overlay video wi
 markers and each body's axes.
 
 The ramp pose is measured from the ramp markers in the video (tracking/ramp.py). Without
-``--camera`` the bundled camera's intrinsics are used and its ramp pose is not (it is where
-``render`` puts the camera for the bundled walker, not where a user's camera stands); a camera file
+``--camera`` the bundled camera's intrinsics are used, read out at the video's size where that
+differs with the same aspect ratio, and its ramp pose is not (it is where ``render`` puts the
+camera for the bundled walker, not where a user's camera stands); a camera file
 given with a ``ramp_pose`` has it checked against the markers and refused, in one line naming the
 angle, if they disagree. Without ``--markers`` the layout is the one ``render`` wrote beside the
 video (``V.markers.json``) if there is one, else the bundled layout. ``M.json`` and the summary
@@ -34,7 +35,8 @@ def register(subparsers) -> None:
     p.add_argument("video", help="video file (e.g. from toywalk render)")
     p.add_argument("--camera", default=None,
                    help="camera file; a ramp_pose in it is checked against the ramp markers (default: "
-                        "the intrinsics of data/camera/default.json, the ramp pose measured)")
+                        "the intrinsics of data/camera/default.json, scaled to the video's size, "
+                        "the ramp pose measured)")
     p.add_argument("--markers", default=None,
                    help="marker layout (default: V.markers.json beside the video if render wrote "
                         "one, else data/markers/default.json)")
@@ -132,6 +134,30 @@ def _layout_path(given, video: Path) -> tuple[Path, str]:
     return _default(None, "markers", "default.json"), "bundled default"
 
 
+def _bundled_lens(camera, video: Path):
+    """The bundled camera's lens for ``video``, without its placement, and how it is used: read
+    out at the video's size where that differs with the same aspect ratio (``render --size`` films
+    with that lens so; a phone's video modes are, to the calibration's accuracy, only where the
+    mode does not crop)."""
+    from toywalk.sysid.cli import CommandError
+    from toywalk.tracking.camera import CameraError
+    from toywalk.tracking.video import declared_size
+
+    camera = dataclasses.replace(camera, ramp_pose=None)
+    size = declared_size(video)
+    if size is None or size == camera.size:
+        return camera, "bundled default: intrinsics only"
+    try:
+        scaled = camera.at_size(*size)
+    except CameraError as err:
+        raise CommandError(f"the video is {size[0]}x{size[1]} pixels and no --camera was given: the "
+                           f"bundled lens ({camera.width}x{camera.height}) does not fit its aspect "
+                           "ratio; calibrate the camera in this video mode (toywalk calibrate) and "
+                           "pass --camera") from err
+    return scaled, (f"bundled default: intrinsics only, scaled from {camera.width}x{camera.height} "
+                    f"to {size[0]}x{size[1]}")
+
+
 def cmd_track(args) -> int:
     from toywalk.model.trajectory import trajectory_paths, write_trajectory
     from toywalk.sysid.cli import CommandError, _version, output_path, refuse_overwrite
@@ -179,8 +205,9 @@ def cmd_track(args) -> int:
     markers_path, markers_from = _layout_path(args.markers, video)
     try:
         camera = load_camera(camera_path)
+        lens = "as given"
         if args.camera is None:  # the bundled camera's lens, not its placement
-            camera = dataclasses.replace(camera, ramp_pose=None)
+            camera, lens = _bundled_lens(camera, video)
         layout = load_layout(markers_path)
         result, source = track_video(video, camera, layout, overlay=overlay, roi=not args.full_search,
                                      hip_width=hip_width)
@@ -196,7 +223,7 @@ def cmd_track(args) -> int:
         "timestamp_policy": result.timestamps,
         "units": {"time": "s", "angles": "rad", "sd": "rad"},
         "camera": {"file": str(camera_path),
-                   "use": "as given" if args.camera else "bundled default: intrinsics only",
+                   "use": lens,
                    **camera.to_dict()},
         "markers": {"file": str(markers_path), "from": markers_from, "dictionary": layout.dictionary,
                     "description": layout.description},
@@ -239,8 +266,10 @@ def cmd_track(args) -> int:
         raise
     both = sum(1 for i in range(n) if not (math.isnan(result.raw["pitch_left"][i])
                                            or math.isnan(result.raw["pitch_right"][i])))
+    scaled = (f"lens: the bundled one scaled to {source.width}x{source.height} (your camera's: "
+              "calibrate, --camera); " if args.camera is None and "scaled" in lens else "")
     print(f"tracked {n} frames ({both} with both legs), {len(result.events)} heel strikes; "
-          f"ramp pose: {result.ramp['source']}; markers: {markers_path.name} ({markers_from}); "
+          f"ramp pose: {result.ramp['source']}; {scaled}markers: {markers_path.name} ({markers_from}); "
           + (f"exposure {_seconds(exposure)} ({exposure_from})" if exposure is not None else
              "exposure not stated, each frame read at its time (--exposure)") + f" -> {out}")
     if n and (both < 0.9 * n or len(result.events) < 3):

@@ -89,6 +89,32 @@ class Camera:
         """(width, height) in pixels, OpenCV's order."""
         return self.width, self.height
 
+    def at_size(self, width: int, height: int) -> Camera:
+        """The same lens read out at ``width`` x ``height`` pixels, as a sensor's video modes are:
+        focal lengths and principal point scale with the image (pixel centres at half-integers,
+        so ``c' = (c + 0.5) s - 0.5``), while the distortion coefficients, in normalised image
+        coordinates, and the ramp pose stay. The aspect ratio must be the same (within a pixel):
+        another one crops the sensor, which no scaling describes.
+
+        Raises
+        ------
+        CameraError
+            Another aspect ratio, or a size that is not positive integers.
+        """
+        if not (isinstance(width, (int, np.integer)) and isinstance(height, (int, np.integer))
+                and width > 0 and height > 0):
+            raise CameraError(f"image size must be positive integers, got {width}x{height}")
+        scale = width / self.width
+        if abs(self.height * scale - height) > 1.0:
+            raise CameraError(f"a {width}x{height} image is not the {self.width}x{self.height} "
+                              "camera's aspect ratio: no scaling of its lens describes it")
+        k = self.matrix.copy()
+        k[:2, :2] *= scale
+        k[:2, 2] = (k[:2, 2] + 0.5) * scale - 0.5
+        return dataclasses.replace(self, width=int(width), height=int(height), matrix=k,
+                                   reprojection_error=None if self.reprojection_error is None
+                                   else self.reprojection_error * scale)
+
     def to_dict(self) -> dict:
         out = {
             "image_size": [self.width, self.height],

@@ -805,7 +805,8 @@ def track_video(path: str | Path, camera: Camera, layout: MarkerLayout, *, overl
     source = open_video(path)
     if (source.width, source.height) != camera.size:
         raise TrackError(f"the video is {source.width}x{source.height} pixels but the camera file "
-                         f"describes {camera.width}x{camera.height}")
+                         f"describes {camera.width}x{camera.height}: calibrate the camera in the "
+                         "video mode it filmed in (toywalk calibrate)")
     writer = None
     tmp = None
     sink = None

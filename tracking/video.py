@@ -24,7 +24,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-__all__ = ["TIMESTAMP_POLICIES", "FrameSource", "TrackError", "declared_fps", "open_video",
+__all__ = ["TIMESTAMP_POLICIES", "FrameSource", "TrackError", "declared_fps", "declared_size", "open_video",
            "timestamp_summary"]
 
 #: Timestamp policies (module docstring) and what each means, for the trajectory's metadata.
@@ -226,6 +226,19 @@ def declared_fps(path: str | Path) -> float:
     finally:
         cap.release()
     return fps if math.isfinite(fps) and fps > 0 else 0.0
+
+
+def declared_size(path: str | Path) -> tuple[int, int] | None:
+    """The frame size (width, height) in pixels a video's stream declares, without decoding a
+    frame; None where the file cannot be opened."""
+    cap = cv2.VideoCapture(str(path))
+    try:
+        if not cap.isOpened():
+            return None
+        size = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
+    finally:
+        cap.release()
+    return size if min(size) > 0 else None
 
 
 def open_video(path: str | Path, *, decoder_threads: int | None = None) -> FrameSource:

@@ -5,6 +5,7 @@ import json
 import cv2
 import numpy as np
 import pytest
+from numpy.testing import assert_allclose
 from toywalk.tracking.camera import (
     Camera,
     CameraError,
@@ -112,6 +113,31 @@ def test_default_camera_field_of_view():
     edge = backproject(cam, [[-0.5, (720 - 1) / 2]])[0]
     assert np.degrees(np.arctan2(-edge[0], edge[2])) == pytest.approx(20.0, abs=1e-9)
     assert json.loads(json.dumps(cam.to_dict()))["image_size"] == [1280, 720]
+
+
+def test_a_lens_read_out_at_another_size_sees_the_same_picture():
+    """A video mode of the same sensor: every 3D point lands where the image scaled with it puts
+    it (pixel centres at half-integers: u' = (u + 0.5) s - 0.5), through OpenCV's own projection
+    with distortion; a field of view's edge stays its edge; another aspect ratio is refused."""
+    rng = np.random.default_rng(3)
+    points = np.column_stack([rng.uniform(-0.2, 0.2, (50, 2)), rng.uniform(0.5, 1.5, 50)])
+    zero = np.zeros(3)
+    for w, h in ((960, 720), (320, 240), (1280, 960)):
+        scaled = DISTORTED.at_size(w, h)
+        s = w / DISTORTED.width
+        assert scaled.size == (w, h)
+        assert_allclose(np.r_[scaled.ramp_pose], np.r_[DISTORTED.ramp_pose], rtol=0, atol=0)
+        # round-off of a float's last digits over hundreds of pixels
+        assert_allclose(project(scaled, points, zero, zero),
+                        (project(DISTORTED, points, zero, zero) + 0.5) * s - 0.5, rtol=0, atol=1e-9)
+        assert_allclose(scaled.at_size(640, 480).matrix, DISTORTED.matrix, rtol=0, atol=1e-12)
+    # the bundled lens at 1080p is the one default_camera gives there (render's lens at that size)
+    assert_allclose(default_camera(1280, 720, 50.0).at_size(1920, 1080).matrix,
+                    default_camera(1920, 1080, 50.0).matrix, rtol=0, atol=1e-9)
+    with pytest.raises(CameraError, match="not the 640x480 camera's aspect ratio"):
+        DISTORTED.at_size(1280, 720)
+    with pytest.raises(CameraError, match="positive integers"):
+        DISTORTED.at_size(0, 480)
 
 
 def test_subpixel_marker_corners_recovered():

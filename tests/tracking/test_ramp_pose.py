@@ -11,6 +11,7 @@ import subprocess
 import cv2
 import numpy as np
 import pytest
+from numpy.testing import assert_allclose
 from toywalk.model.kinematics import angles_from_rotations, rotation
 from toywalk.model.trajectory import read_trajectory
 from toywalk.tracking.camera import Camera
@@ -209,6 +210,42 @@ def test_track_without_the_render_camera_meets_the_targets(stable_walk):
     assert [e["foot"] for e in tracked.events] == [e["foot"] for e in true]
     errors = np.array([e["time"] - s["time"] for e, s in zip(tracked.events, true, strict=True)])
     assert np.sqrt(np.mean(errors**2)) / dt <= 0.25  # a quarter frame; measured 0.12
+
+
+@pytest.mark.slow
+def test_track_without_a_camera_reads_the_bundled_lens_at_the_videos_size(stable_walk, tmp_path):
+    """A video filmed in another mode of the same aspect ratio (render --size 1920x1080, as a
+    phone's 1080p): track without --camera reads the bundled lens out at that size, says so, and
+    meets the targets; a 4:3 video, which no scaling of the lens describes, is refused in one line
+    that says to calibrate, with nothing written. (Refused whatever its aspect before: the video
+    is 1920x1080 pixels but the camera file describes 1280x720.)"""
+    params = DATA / "params" / "stable-toy.toml"
+    for size, seconds in (("1920x1080", 0.7), ("1280x960", 0.1)):
+        r = _run("render", stable_walk / "T.csv", "--params", params, "--size", size, "--duration",
+                 seconds, "--seed", 8, "--out", tmp_path / f"{size}.mp4")
+        assert r.returncode == 0, r.stderr
+    out = tmp_path / "hd" / "M.csv"
+    out.parent.mkdir()
+    r = _run("track", tmp_path / "1920x1080.mp4", "--out", out)
+    assert r.returncode == 0, r.stderr
+    assert "lens: the bundled one scaled to 1920x1080" in r.stdout
+    meta = json.loads((out.parent / "M.json").read_text())
+    assert meta["camera"]["use"] == "bundled default: intrinsics only, scaled from 1280x720 to 1920x1080"
+    # the lens render filmed with at that size (default_camera_for, computed on its own)
+    filmed = json.loads((tmp_path / "1920x1080.camera.json").read_text())
+    assert_allclose(meta["camera"]["camera_matrix"], filmed["camera_matrix"], rtol=0, atol=1e-9)
+    tracked, truth = read_trajectory(out), read_trajectory(tmp_path / "1920x1080.truth.csv")
+    assert len(tracked.time) == 43  # 0.7 s at 60 frames/s, both ends
+    for name in NAMES:
+        err = np.degrees(tracked.signals[name] - truth.signals[name])
+        assert np.isfinite(err).all(), name
+        # the issue 4 targets, as above; measured 0.02 (lean), 0.06 (steer), 0.10-0.13 (pitches)
+        assert np.sqrt(np.mean(err**2)) <= (0.5 if name == "steer" else 0.3), name
+    (tmp_path / "sd").mkdir()
+    r = _run("track", tmp_path / "1280x960.mp4", "--out", tmp_path / "sd" / "M.csv")
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert "does not fit its aspect ratio; calibrate the camera in this video mode" in r.stderr
+    assert list((tmp_path / "sd").iterdir()) == []
 
 
 @pytest.mark.slow
