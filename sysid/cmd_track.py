@@ -162,6 +162,7 @@ def cmd_track(args) -> int:
     from toywalk.model.trajectory import trajectory_paths, write_trajectory
     from toywalk.sysid.cli import CommandError, _version, output_path, refuse_overwrite
     from toywalk.tracking.camera import CameraError, load_camera
+    from toywalk.tracking.events import legs_passing
     from toywalk.tracking.markers import LayoutError, load_layout
     from toywalk.tracking.ramp import RampPoseError
     from toywalk.tracking.track import TrackError, track_video
@@ -272,11 +273,16 @@ def cmd_track(args) -> int:
           f"ramp pose: {result.ramp['source']}; {scaled}markers: {markers_path.name} ({markers_from}); "
           + (f"exposure {_seconds(exposure)} ({exposure_from})" if exposure is not None else
              "exposure not stated, each frame read at its time (--exposure)") + f" -> {out}")
-    if n and (both < 0.9 * n or len(result.events) < 3):
+    passings = legs_passing(result.raw["pitch_left"], result.raw["pitch_right"])
+    # The strikes found against the legs' passings, once a step (one fewer or more at the walk's
+    # ends, and one more where a strike falls in a gap): more missing means missed strikes.
+    missed = len(result.events) < passings - 2
+    if n and (both < 0.9 * n or len(result.events) < 3 or missed):
         # The files are written (a user may still want the angles), but fit and diagnose need
-        # both legs and at least three strikes: say so now, with the likely cause.
+        # both legs and heel strikes, at least three: say so now, with the likely cause.
         print(f"toywalk track: warning: a leg was lost in {n - both} of {n} frames and "
-              f"{len(result.events)} heel strikes were found (fit needs 3); fast legs blur at low "
-              "frame rates or long exposures: film at 120 frames/s or more, or check the overlay "
-              "(--overlay)", file=sys.stderr)
+              f"{len(result.events)} heel strikes were found (fit needs 3) where the legs passed "
+              f"each other {passings} times (once a step); fast legs blur at low frame rates or "
+              "long exposures: film at 120 frames/s or more, or check the overlay (--overlay)",
+              file=sys.stderr)
     return 0

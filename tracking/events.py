@@ -31,8 +31,32 @@ import dataclasses
 
 import numpy as np
 
-__all__ = ["HeelStrike", "fit_samples_per_side", "heel_strikes", "isolated_outliers", "noise_sd",
-           "stance_from_events", "step_samples"]
+__all__ = ["HeelStrike", "fit_samples_per_side", "heel_strikes", "isolated_outliers", "legs_passing",
+           "noise_sd", "stance_from_events", "step_samples"]
+
+#: Half-width of the band (rad) the legs' relative pitch must cross to count as the legs passing
+#: (:func:`legs_passing`): about five times a tracked pitch's noise (0.1 degree RMS), a few percent
+#: of a toy's swing (its legs 15-40 degrees apart at a heel strike).
+PASSING_BAND = np.radians(0.5)
+
+
+def legs_passing(pitch_left, pitch_right, band: float = PASSING_BAND) -> int:
+    """How many times the legs pass each other: the swing leg overtakes the stance leg once a
+    step, so a walk's heel strikes number about as many (one fewer or more at its ends). A count
+    independent of the kinks the strikes are found from: far more passings than strikes found
+    means strikes were missed (a swing too fast for the frame rate).
+
+    Parameters
+    ----------
+    pitch_left, pitch_right : array_like, shape (n,)
+        The legs' pitches (rad); NaN where not tracked (those samples are skipped).
+    band : float
+        The relative pitch ``left - right`` must go from below ``-band`` to above ``band``, or
+        back, to count (rad): noise about zero is not a passing.
+    """
+    rel = np.asarray(pitch_left, float) - np.asarray(pitch_right, float)
+    side = np.sign(rel[np.isfinite(rel) & (np.abs(rel) > band)])
+    return int(np.count_nonzero(side[1:] != side[:-1]))
 
 
 @dataclasses.dataclass(frozen=True)

@@ -87,3 +87,34 @@ def test_a_reader_that_stops_early_gets_no_traceback():
         err = proc.stderr.read().decode()
         assert proc.wait(timeout=120) == 141, err
     assert err == ""
+
+
+def test_track_warns_when_heel_strikes_are_missed(tmp_path, capfd, monkeypatch):
+    """Strikes missed while the legs are tracked (a swing too fast for the frame rate: a 1080p,
+    30 frames/s clip of clearing-toy, 5 frames a step, gave 4 strikes for 10 steps, and track said
+    nothing) leave fit a walk with holes. Track compares the strikes it found with the times the
+    legs passed each other, once a step, and warns where more than two are missing. Here the
+    strike finder is made to drop every other strike of a clip where it finds them all: more than
+    the three fit needs are left, so only the comparison can warn."""
+    import toywalk.tracking.track as track_module
+    from toywalk.sysid.cli import main
+
+    for folder in ("all", "some"):
+        (tmp_path / folder).mkdir()
+    walk, video = tmp_path / "walk.csv", tmp_path / "clip.mp4"
+    assert main(["simulate", "--params", str(STABLE_TOY), "--steps", "12", "--seed", "4",
+                 "--out", str(walk)]) == 0
+    assert main(["render", str(walk), "--params", str(STABLE_TOY), "--size", "640x360",
+                 "--seed", "2", "--out", str(video)]) == 0
+    outcome = toywalk(capfd, "track", video, "--out", tmp_path / "all" / "m.csv")
+    assert outcome.code == 0 and outcome.err_lines == [], outcome.err
+    found = len(read_trajectory(tmp_path / "all" / "m.csv").events)
+    finder = track_module.heel_strikes
+    monkeypatch.setattr(track_module, "heel_strikes", lambda *a, **k: finder(*a, **k)[::2])
+    outcome = toywalk(capfd, "track", video, "--out", tmp_path / "some" / "m.csv")
+    assert outcome.code == 0, outcome.err
+    kept = len(read_trajectory(tmp_path / "some" / "m.csv").events)
+    assert 3 <= kept < found - 2, (kept, found)
+    lines = outcome.err_lines
+    assert len(lines) == 1 and f"{kept} heel strikes were found (fit needs 3) where the legs passed " \
+        "each other" in lines[0], outcome.err

@@ -321,3 +321,26 @@ def test_a_strike_missed_between_two_of_the_other_foot_is_put_back(monkeypatch):
     pr[gap] = np.nan
     events = heel_strikes(t, pl, pr, half_window=7)
     assert not any(abs(e.time - truth[hole]) < 0.5 * fast for e in events)
+
+
+def test_legs_passing_counts_each_overtaking_once():
+    """The relative pitch of a walk swings through zero once a step: a sine over 7.3 half
+    periods passes 7 times, with 0.1 degree of tracking noise and gaps (a gap across a passing
+    still counts it once); noise about zero (legs held together) is no passing."""
+    from toywalk.tracking.events import PASSING_BAND, legs_passing
+
+    rng = np.random.default_rng(4)
+    t = np.linspace(0.0, 7.3, 400)  # in steps; the legs pass at t = 1, 2, ..., 7 (rel = sin(pi t))
+    rel = np.radians(15.0) * np.sin(np.pi * t) + rng.normal(0.0, np.radians(0.1), t.size)
+    left = 0.2 + rel / 2
+    right = 0.2 - rel / 2
+    assert legs_passing(left, right) == 7
+    gappy = left.copy()
+    gappy[(t > 2.9) & (t < 3.2)] = np.nan  # the passing at t = 3 falls in the gap
+    gappy[::17] = np.nan
+    assert legs_passing(gappy, right) == 7
+    # The band is what keeps noise out: with none, jitter about zero counts (the check can fail).
+    still = np.radians(0.1) * rng.standard_normal(400)
+    assert legs_passing(still, np.zeros(400)) == 0
+    assert legs_passing(still, np.zeros(400), band=0.0) > 100
+    assert PASSING_BAND == pytest.approx(np.radians(0.5))

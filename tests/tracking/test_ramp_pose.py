@@ -229,6 +229,7 @@ def test_track_without_a_camera_reads_the_bundled_lens_at_the_videos_size(stable
     r = _run("track", tmp_path / "1920x1080.mp4", "--out", out)
     assert r.returncode == 0, r.stderr
     assert "lens: the bundled one scaled to 1920x1080" in r.stdout
+    assert "warning" not in r.stderr  # every heel strike found, both legs in every frame
     meta = json.loads((out.parent / "M.json").read_text())
     assert meta["camera"]["use"] == "bundled default: intrinsics only, scaled from 1280x720 to 1920x1080"
     # the lens render filmed with at that size (default_camera_for, computed on its own)
