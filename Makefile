@@ -43,6 +43,7 @@ bench: libraries
 	$(PY) benchmarks/corner_errors.py --lossless
 	$(PY) benchmarks/sample_speed.py
 	$(PY) benchmarks/diagnose_speed.py
+	$(PY) benchmarks/transient_speed.py
 	$(PY) benchmarks/process_start.py
 
 lint: $(STAMP)

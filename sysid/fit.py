@@ -113,6 +113,9 @@ _NEAR_SINGULAR = 1e-6
 _NEWTON_STEPS, _NEWTON_TOL = 10, 1e-12
 #: Newton steps taken after the equalities are within that tolerance (``_Problem._resolve``).
 _POLISH = 2
+#: A transient fit holds the model's heel-strike times as unknowns (``_Problem``); False reads
+#: them through the step durations, the naive way benchmarks/transient_speed.py times beside it.
+_CLOCK_LIFTED = True
 
 
 def _misfit_note(obs: Observations, rms: dict, stated: dict | None = None) -> str:
@@ -672,7 +675,7 @@ class _Problem:
         # for 20 steps took 24 s to build, 1.8 s with the clock; the transient fit of 60 steps
         # ran more than 9.5 minutes, 30 s with the clock). A periodic fit's one or two step
         # durations need no clock.
-        n_k = 0 if prob.periodic else obs.n_steps + 1
+        n_k = 0 if prob.periodic or not _CLOCK_LIFTED else obs.n_steps + 1
         n_before = n_w + n_f + n_o + n_c + n_d + n_t
         self.clock_cols = np.arange(n_before, n_before + n_k)
         x = ca.MX.sym("x", n_w + n_f + n_o + n_c + n_d + n_t + n_k + 1)
