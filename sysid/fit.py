@@ -954,21 +954,26 @@ class _Problem:
         lbx, ubx = np.full(self.n_w, -np.inf), np.full(self.n_w, np.inf)
         lbx[self.start_free] = ubx[self.start_free] = w0[self.start_free]
         sol = self.prob.solver(x0=w0, p=p, lbg=self.prob.lbg, ubg=self.prob.ubg, lbx=lbx, ubx=ubx)
-        w = np.array(sol["x"]).ravel() if self.prob.solver.stats()["success"] else w0.copy()
+        solved = bool(self.prob.solver.stats()["success"])
+        w = np.array(sol["x"]).ravel() if solved else w0.copy()
         n_eq = self.prob.n_equalities
         dep = np.setdiff1d(np.arange(self.n_w), self.start_free)
+        # the latest unknowns within the tolerance (IPOPT's, where it succeeded): what stands if
+        # the Newton steps after them do not end within it again
+        within = w.copy() if solved else None
         polish = 0
         for _ in range(_NEWTON_STEPS + _POLISH):
             g = np.array(self.prob.constraints(w, p)).ravel()[:n_eq]
             if not np.all(np.isfinite(g)):
-                return None
+                return within
             if np.max(np.abs(g)) <= _NEWTON_TOL:
+                within = w.copy()
                 if polish == _POLISH:
                     return w
                 polish += 1
             g_w = _sparse(_equality_jacobians(self.prob)(w, p)[0]).tocsc()
             w[dep] -= splu(g_w[:, dep]).solve(g)
-        return None
+        return within
 
     def fd_check(self, x: np.ndarray, sigma: np.ndarray, jac: np.ndarray) -> dict:
         """Central differences of the residuals in each free parameter, re-solving the BVP (with a

@@ -258,3 +258,29 @@ def test_a_transient_fits_clock_keeps_its_hessian_sparse_and_its_derivatives_exa
     fd = (cols[0] - cols[1]) / (2 * h)
     # central differences of a smooth function at h = 1 us: truncation and round-off 1e-6 relative
     assert np.linalg.norm(jac[:, -1] - fd) < 1e-6 * np.linalg.norm(fd)
+
+
+def test_the_checks_re_solve_lands_on_the_root_and_keeps_ipopts_where_newton_fails(toy, monkeypatch):
+    """The Jacobian check re-solves the BVP at a perturbed parameter: IPOPT, then Newton steps on
+    the equalities past its tolerance (IPOPT's unknowns stand off the root along ill-conditioned
+    directions; a central difference divides that by its step). Where those Newton steps go
+    wrong, IPOPT's solution, within the tolerance, stands rather than none."""
+    import toywalk.sysid.fit as fitting
+
+    problem, x = _transient_problem(toy, 6)
+    problem.jacobian(x, np.full(problem.n_obs, 0.002))  # sets the free start the re-solve holds
+    theta = problem.theta(x) * (1 + 1e-5)
+    polished = problem._resolve(x, theta)
+    p = problem.p_full(theta)
+    g = np.array(problem.prob.constraints(polished, p)).ravel()[:problem.prob.n_equalities]
+    assert np.abs(g).max() <= fitting._NEWTON_TOL
+    # Newton steps a million times too long: non-finite or far off, never within the tolerance
+    real = fitting._equality_jacobians(problem.prob)
+    monkeypatch.setattr(fitting, "_equality_jacobians",
+                        lambda prob: lambda w, p: [m * 1e-6 for m in real(w, p)])
+    kept = problem._resolve(x, theta)
+    assert kept is not None  # before: None, the check not made
+    g = np.array(problem.prob.constraints(kept, p)).ravel()[:problem.prob.n_equalities]
+    assert np.abs(g).max() <= fitting._NEWTON_TOL
+    # IPOPT's solution and the polished one: the same root to the BVP's conditioning
+    assert np.abs(kept - polished).max() < 1e-6
