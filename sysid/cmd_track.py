@@ -135,10 +135,11 @@ def _layout_path(given, video: Path) -> tuple[Path, str]:
 
 
 def _bundled_lens(camera, video: Path):
-    """The bundled camera's lens for ``video``, without its placement, and how it is used: read
-    out at the video's size where that differs with the same aspect ratio (``render --size`` films
-    with that lens so; a phone's video modes are, to the calibration's accuracy, only where the
-    mode does not crop)."""
+    """The bundled camera's lens for ``video``, without its placement; how it is used (for
+    ``M.json``); and what the summary line says of it (empty: nothing). Read out at the video's
+    size where that differs with the same aspect ratio (``render --size`` films with that lens
+    so; a phone's video modes are, to the calibration's accuracy, only where the mode does not
+    crop)."""
     from toywalk.sysid.cli import CommandError
     from toywalk.tracking.camera import CameraError
     from toywalk.tracking.video import declared_size
@@ -146,7 +147,7 @@ def _bundled_lens(camera, video: Path):
     camera = dataclasses.replace(camera, ramp_pose=None)
     size = declared_size(video)
     if size is None or size == camera.size:
-        return camera, "bundled default: intrinsics only"
+        return camera, "bundled default: intrinsics only", ""
     try:
         scaled = camera.at_size(*size)
     except CameraError as err:
@@ -154,8 +155,9 @@ def _bundled_lens(camera, video: Path):
                            f"bundled lens ({camera.width}x{camera.height}) does not fit its aspect "
                            "ratio; calibrate the camera in this video mode (toywalk calibrate) and "
                            "pass --camera") from err
-    return scaled, (f"bundled default: intrinsics only, scaled from {camera.width}x{camera.height} "
-                    f"to {size[0]}x{size[1]}")
+    return (scaled, f"bundled default: intrinsics only, scaled from {camera.width}x{camera.height} to "
+            f"{size[0]}x{size[1]}", f"lens: the bundled one scaled to {size[0]}x{size[1]} (your camera's: "
+            "calibrate, --camera); ")
 
 
 def cmd_track(args) -> int:
@@ -206,9 +208,9 @@ def cmd_track(args) -> int:
     markers_path, markers_from = _layout_path(args.markers, video)
     try:
         camera = load_camera(camera_path)
-        lens = "as given"
+        lens, lens_said = "as given", ""
         if args.camera is None:  # the bundled camera's lens, not its placement
-            camera, lens = _bundled_lens(camera, video)
+            camera, lens, lens_said = _bundled_lens(camera, video)
         layout = load_layout(markers_path)
         result, source = track_video(video, camera, layout, overlay=overlay, roi=not args.full_search,
                                      hip_width=hip_width)
@@ -267,10 +269,8 @@ def cmd_track(args) -> int:
         raise
     both = sum(1 for i in range(n) if not (math.isnan(result.raw["pitch_left"][i])
                                            or math.isnan(result.raw["pitch_right"][i])))
-    scaled = (f"lens: the bundled one scaled to {source.width}x{source.height} (your camera's: "
-              "calibrate, --camera); " if args.camera is None and "scaled" in lens else "")
     print(f"tracked {n} frames ({both} with both legs), {len(result.events)} heel strikes; "
-          f"ramp pose: {result.ramp['source']}; {scaled}markers: {markers_path.name} ({markers_from}); "
+          f"ramp pose: {result.ramp['source']}; {lens_said}markers: {markers_path.name} ({markers_from}); "
           + (f"exposure {_seconds(exposure)} ({exposure_from})" if exposure is not None else
              "exposure not stated, each frame read at its time (--exposure)") + f" -> {out}")
     passings = legs_passing(result.raw["pitch_left"], result.raw["pitch_right"])

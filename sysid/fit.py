@@ -697,7 +697,9 @@ class _Problem:
             self.dp_dtheta[follower, self.index.index(leader)] = 1.0
         inv_sd_all = ca.MX.sym("inv_sd", self.n_obs + 2 * pth.n)
         inv_sd, inv_sd_c = inv_sd_all[:self.n_obs], inv_sd_all[self.n_obs:]
-        durations = ca.vertcat(*[w[prob.duration_index(j)] for j in range(prob.phases)])
+        # each model step's duration among the BVP's unknowns
+        self.duration_rows = np.array([prob.duration_index(j) for j in range(prob.phases)])
+        durations = w[self.duration_rows]
         clock = x[self.clock_cols] if n_k else None
         model = tm.values(w, durations, time_offset, clock) + ca.mtimes(ca.DM(b_op), off)
         r_ang = (model - ca.DM(obs.value)) * inv_sd
@@ -795,7 +797,7 @@ class _Problem:
 
     def durations(self, x: np.ndarray) -> np.ndarray:
         """The model steps' durations (s), shape (phases,)."""
-        return np.array([x[self.prob.duration_index(j)] for j in range(self.prob.phases)])
+        return x[self.duration_rows]
 
     def clocked(self, x: np.ndarray) -> np.ndarray:
         """``x`` with its clock (a transient's model strikes) set from its durations and time
@@ -925,8 +927,7 @@ class _Problem:
         j_time = jr[:, -1:].toarray() / self.t_scale
         if len(self.clock_cols):  # the clock follows the durations and the time offset
             j_clock = jr[:, self.clock_cols]
-            rows = [prob.duration_index(j) for j in range(prob.phases)]
-            j_model += j_clock @ (self.tm.strikes_before @ dw[rows])
+            j_model += j_clock @ (self.tm.strikes_before @ dw[self.duration_rows])
             j_time += np.asarray(j_clock.sum(axis=1))
         if not self.offsets:
             j_off = j_off[:, :0]

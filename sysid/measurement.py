@@ -491,6 +491,8 @@ class Timing:
         of its mesh interval.
     interval : ndarray of int, shape (n_r,)
         Each read's mesh interval, from its measured phase.
+    step : ndarray of int, shape (n_r,)
+        Each read's measured step (its start is strike ``step`` of :attr:`strike_rel`).
     before, own, strikes_before : ndarray
         :func:`step_counts` (of the reads).
     t_rel : ndarray, shape (n_r,)
@@ -504,13 +506,11 @@ class Timing:
         Each read's measured phase in its step.
     average : scipy.sparse.csr_matrix, shape (n_obs, n_r), or None
         The samples from the reads (:func:`shutter_reads`); None where they are the samples.
-    step : ndarray of int, shape (n_r,), or None
-        Each read's measured step (its start is strike ``step`` of :attr:`strike_rel`): needed
-        only to read the model's strikes from a lifted clock (:meth:`values`).
     """
 
     basis: list
     interval: np.ndarray
+    step: np.ndarray
     before: np.ndarray
     own: np.ndarray
     strikes_before: np.ndarray
@@ -520,7 +520,6 @@ class Timing:
     n_int: int
     phase: np.ndarray
     average: sp.csr_matrix | None = None
-    step: np.ndarray | None = None
 
     def _samples(self, reads):
         """The samples' values from the reads' (NumPy or CasADi; SciPy sparse for a matrix)."""
@@ -550,8 +549,6 @@ class Timing:
 
     def step_select(self) -> sp.csr_matrix:
         """The reads' selection (n_r, n_steps + 1) of their own step's start from the strikes."""
-        if self.step is None:
-            raise ValueError("this Timing was built without the reads' steps")
         n = len(self.step)
         return sp.csr_matrix((np.ones(n), (np.arange(n), self.step)), shape=(n, len(self.strike_rel)))
 
@@ -601,10 +598,9 @@ def timing(obs: Observations, prob: BVP, planar: bool) -> Timing:
         basis.append(sp.csr_matrix((sign[rows], (rows, cols)), shape=(len(reads.value), n_w)))
     before, own, strikes_before = step_counts(reads, prob.phases, prob.periodic)
     t0 = obs.step_start[0]
-    return Timing(basis=basis, interval=interval, before=before, own=own,
+    return Timing(basis=basis, interval=interval, step=reads.step, before=before, own=own,
                   strikes_before=strikes_before, t_rel=reads.time - t0, strike_rel=obs.strikes - t0,
-                  nodes=np.r_[0.0, prob.tau], n_int=prob.n_int, phase=reads.phase, average=average,
-                  step=reads.step)
+                  nodes=np.r_[0.0, prob.tau], n_int=prob.n_int, phase=reads.phase, average=average)
 
 
 def operator(obs: Observations, prob: BVP, planar: bool) -> tuple[sp.csr_matrix, np.ndarray,

@@ -24,8 +24,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-__all__ = ["TIMESTAMP_POLICIES", "FrameSource", "TrackError", "declared_fps", "declared_size", "open_video",
-           "timestamp_summary"]
+__all__ = ["TIMESTAMP_POLICIES", "FrameSource", "TrackError", "declared_fps", "declared_size",
+           "open_video", "timestamp_summary"]
 
 #: Timestamp policies (module docstring) and what each means, for the trajectory's metadata.
 TIMESTAMP_POLICIES = {
@@ -217,27 +217,28 @@ def _check_container(path: Path) -> None:
                          f"an {kind[0]} header): a mislabelled file, or a video cut at its start")
 
 
+def _declared(path: str | Path, *props: int) -> tuple[float, ...] | None:
+    """The container's values of OpenCV capture properties ``props``, without decoding a frame;
+    None where the file cannot be opened."""
+    cap = cv2.VideoCapture(str(path))
+    try:
+        return tuple(float(cap.get(p) or 0.0) for p in props) if cap.isOpened() else None
+    finally:
+        cap.release()
+
+
 def declared_fps(path: str | Path) -> float:
     """The frame rate a video's container declares (frames/s; 0 where it declares none or cannot
     be opened), without decoding a frame."""
-    cap = cv2.VideoCapture(str(path))
-    try:
-        fps = float(cap.get(cv2.CAP_PROP_FPS) or 0.0) if cap.isOpened() else 0.0
-    finally:
-        cap.release()
+    fps = (_declared(path, cv2.CAP_PROP_FPS) or (0.0,))[0]
     return fps if math.isfinite(fps) and fps > 0 else 0.0
 
 
 def declared_size(path: str | Path) -> tuple[int, int] | None:
     """The frame size (width, height) in pixels a video's stream declares, without decoding a
     frame; None where the file cannot be opened."""
-    cap = cv2.VideoCapture(str(path))
-    try:
-        if not cap.isOpened():
-            return None
-        size = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
-    finally:
-        cap.release()
+    got = _declared(path, cv2.CAP_PROP_FRAME_WIDTH, cv2.CAP_PROP_FRAME_HEIGHT)
+    size = (0, 0) if got is None else (int(got[0]), int(got[1]))
     return size if min(size) > 0 else None
 
 
