@@ -100,6 +100,9 @@ def cmd_diagnose(args) -> int:
         g = result.gain
         print(f"held-out chi-square {g['base']:.1f} -> {g['extended']:.1f}; max |eigenvalue| "
               f"{g['max_abs_eigenvalue']['base']:#.4g} -> {g['max_abs_eigenvalue']['extended']:#.4g}")
+    if result.next_walk and result.next_walk.get("suggestion"):
+        print(f"next walk: {result.next_walk['suggestion']} (report.md, 'Which further walk would "
+              "tell them apart')")
     print(f"report -> {out / 'report.md'}")
     return 0
 

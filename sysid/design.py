@@ -37,12 +37,14 @@ from collections.abc import Sequence
 import numpy as np
 from toywalk.model.parameters import Params
 from toywalk.model.trajectory import TrajectoryTable
+from toywalk.model.walker import STATE_NAMES
 
-from .discrepancy import ALPHA, SEPARATION, Candidate, lr_p_value
-from .fit import fit, held_jacobian
+from .discrepancy import ALPHA, SEPARATION, Candidate, FitPool, lr_p_value, run_fits
+from .fit import FitError, FitResult, fit, held_jacobian
 from .walks import stacked
 
-__all__ = ["DesignError", "WalkColumns", "separation", "walk_columns"]
+__all__ = ["CONDITIONS", "Condition", "DesignError", "WalkColumns", "next_walk", "separation",
+           "walk_columns"]
 
 
 class DesignError(ValueError):
@@ -167,3 +169,148 @@ def separation(walks: Sequence[WalkColumns], candidates: Sequence[Candidate], hi
                     "nearest": nearest, "gap": gaps[nearest] if nearest else math.inf,
                     "named_rate": float(np.mean(named)), "draws": draws})
     return out
+
+
+@dataclasses.dataclass(frozen=True)
+class Condition:
+    """A known change to the walker under which a further walk is filmed: the parameter ``name``
+    (a parameter-file name) multiplied by ``factor``; ``label`` says it in words."""
+
+    label: str
+    name: str
+    factor: float
+
+
+#: The further walks a tie's report weighs. On the stable toy a ramp at 0.8 of the slope separated
+#: the hinge's dry from its viscous friction, and balance masses moved by 1 cm (5 % of its lateral
+#: offset) pivot friction from both (docs/diagnosis.md, "Which second walk breaks the ties"); a
+#: steeper ramp is there for walkers with no gait on a flatter one (the clearing toy folds 3 %
+#: below its slope), and the masses move by 10 % so that a walker with a small lateral offset
+#: still changes measurably.
+CONDITIONS = (
+    Condition("a ramp at 0.8 of the slope", "slope", 0.8),
+    Condition("a ramp at 1.2 times the slope", "slope", 1.2),
+    Condition("the legs' centres of mass 10 % further out (balance masses moved out)",
+              "com_offset[1]", 1.1),
+    Condition("the legs' centres of mass 10 % further in (balance masses moved in)",
+              "com_offset[1]", 0.9),
+)
+
+
+def next_walk(table: TrajectoryTable, base: FitResult, candidates: Sequence[Candidate],
+              hidden: dict, *, conditions: Sequence[Condition] = CONDITIONS, pool: FitPool | int = 1,
+              draws: int = 2000, alpha: float = ALPHA, rng=0, **fit_options) -> dict:
+    """Which further walk, analysed with the measured one, would tell apart the tied causes
+    ``hidden`` (first order about the base fit: :func:`separation`).
+
+    For each condition the base walker (``base.params``) is changed, its gait followed there from
+    the base fit's by continuation, and a noise-free walk of it simulated with the measured walk's
+    steps, sample rate and signals; the base model is fitted to that walk with the base fit's
+    noise SDs (:func:`walk_columns`). Each tied cause is then hidden at its fitted change from its
+    base value, in the measured walk and the further one alike, and the gaps to every other
+    candidate and the rule's naming rate computed; one more walk under the same condition is the
+    reference (as much data again, no new direction).
+
+    Parameters
+    ----------
+    table : TrajectoryTable
+        The measured walk; ``base`` its base fit.
+    candidates : sequence of Candidate
+        The analysis's candidates.
+    hidden : dict of str to float
+        Each tied cause (a candidate's name) -> its fitted change from the base value.
+    conditions : sequence of Condition
+    pool : FitPool or int
+        Where the further walks' fits run (:func:`toywalk.sysid.discrepancy.run_fits`).
+    draws, alpha, rng
+        As :func:`separation`.
+    **fit_options
+        Passed to the further walks' base fits (``offsets``, ``priors``).
+
+    Returns
+    -------
+    dict
+        ``tied`` (the names), ``conditions`` (per condition: ``label``, ``parameter``, ``from``,
+        ``to``, the further walk's gait ``max_abs_eigenvalue`` and ``stable``, ``results`` as
+        :func:`separation` gives them without ``gaps`` beyond the ``nearest``, ``gap`` and
+        ``named_rate`` the smallest over the tied causes, or ``reason`` where the walk could
+        not be made or fitted), ``same_again`` (the reference row), ``suggestion`` (the label of
+        the condition that names every tied cause most often, at least half the time, preferring
+        one whose gait is stable when the measured walker's is; None when none does) and
+        ``method``.
+    """
+    free, names = list(base.free), [c.name for c in candidates]
+    jac, _ = held_jacobian(table, base, names)
+    k = len(free) + len(names)
+    own = WalkColumns(jac[:, :k], jac[:, k:], free + names, len(free), "measured")
+    steps = max(len([e for e in table.events if e.get("time") is not None]) - 1, 1)
+    rate = 1.0 / float(np.median(np.diff(table.time)))
+    signals = [n for n in ("lean", "steer", "pitch_left", "pitch_right", "contact_x", "contact_y")
+               if n in table.signals]
+    gait = base.gait or {}
+    z_start = [gait["fixed_point"][n] for n in STATE_NAMES] if "fixed_point" in gait else None
+    options = {k: v for k, v in fit_options.items() if k not in ("model", "strikes", "max_iter")}
+    tasks = [dict(params=base.params, condition=c, z_start=z_start, planar=bool(gait.get("planar")),
+                  steps=steps, rate=rate, signals=signals, free=free, names=names,
+                  noise_sd={n: v for n, v in base.noise_sd.items() if n in signals}, options=options)
+             for c in conditions]
+    walks = run_fits(tasks, pool, runner=_further_walk) if tasks else []
+
+    def summary(walk_list) -> dict:
+        results = separation(walk_list, candidates, hidden, draws=draws, alpha=alpha, rng=rng)
+        worst = min(results, key=lambda r: (r["named_rate"], r["gap"]))
+        return {"results": [{key: r[key] for key in ("hidden", "change", "lr", "nearest", "gap",
+                                                     "named_rate")} for r in results],
+                "gap": min(r["gap"] for r in results), "named_rate": worst["named_rate"]}
+
+    rows = []
+    for c, walk in zip(conditions, walks, strict=True):
+        row = {"label": c.label, "parameter": c.name, "from": base.params.get(c.name),
+               "to": base.params.get(c.name) * c.factor}
+        if isinstance(walk, str):
+            row["reason"] = walk
+        else:
+            row.update(max_abs_eigenvalue=walk["max_abs_eigenvalue"], stable=walk["stable"],
+                       **summary([own, walk["columns"]]))
+        rows.append(row)
+    want_stable = bool(gait.get("stable", False))
+    usable = [r for r in rows if "named_rate" in r and r["named_rate"] >= 0.5
+              and r["gap"] >= SEPARATION and (r["stable"] or not want_stable)]
+    best = max(usable, key=lambda r: (r["named_rate"], r["gap"])) if usable else None
+    return {"tied": list(hidden), "conditions": rows, "same_again": summary([own, own]),
+            "suggestion": best["label"] if best else None,
+            "method": ("first order about the base fit (toywalk.sysid.design): the measured walk "
+                       "and one further walk analysed together, each tied cause hidden at its "
+                       f"fitted change, {draws} noise draws for the naming rate")}
+
+
+def _further_walk(task: dict):
+    """One condition's further walk and its columns (:func:`next_walk`), or why there is none (a
+    string). Module level, so that worker processes can unpickle it."""
+    from toywalk.model.gait import GaitNotFound, continue_gait, find_gait
+    from toywalk.model.simulate import simulate
+
+    params, c = task["params"], task["condition"]
+    changed = params.replace(**{c.name: params.get(c.name) * c.factor})
+    try:
+        if task["z_start"] is not None:
+            gait = continue_gait(params, changed, np.asarray(task["z_start"]), planar=task["planar"])
+        else:
+            gait = find_gait(changed)
+    except GaitNotFound as err:
+        return f"no gait of the changed walker: {err}"
+    traj = simulate(changed, gait.fixed_point, task["steps"], sample_rate=task["rate"],
+                    planar=gait.planar)
+    if traj.status != "completed":
+        return f"the changed walker's walk stopped: {traj.message}"
+    left, right = traj.pitches()
+    series = {"lean": traj.lean, "steer": traj.steer, "pitch_left": left, "pitch_right": right,
+              "contact_x": traj.contact[:, 0], "contact_y": traj.contact[:, 1]}
+    events = [{"time": 0.0, "foot": "L"}] + [{"time": e.time, "foot": e.foot} for e in traj.events]
+    walk = TrajectoryTable(traj.times, {n: series[n] for n in task["signals"]}, traj.stance, events, {})
+    try:
+        columns = walk_columns(walk, changed, task["free"], task["names"], label=c.label,
+                               model="periodic", noise_sd=task["noise_sd"], **task["options"])
+    except (DesignError, FitError) as err:
+        return str(err)
+    return {"columns": columns, "max_abs_eigenvalue": gait.max_abs_eigenvalue, "stable": gait.stable}

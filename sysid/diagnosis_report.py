@@ -21,7 +21,7 @@ import numpy as np
 from toywalk.model.files import atomic_write_json, atomic_write_text, strict_json
 
 from .diagnostics import _save
-from .discrepancy import Diagnosis
+from .discrepancy import SEPARATION, Diagnosis
 
 __all__ = ["numbers_figure", "write_diagnosis", "write_summary_diagnosis", "write_walks_diagnosis"]
 
@@ -145,8 +145,8 @@ def _markdown(d: Diagnosis) -> str:
     lines += ["", "![residuals by phase](residuals_by_phase.png)", "", "## Gait features", "",
               "| feature | measured | model | z (base) | z (extended) |", "|---|---|---|---|---|"]
     for key, v in d.features.items():
-        after = d.features_extended[key]["z"] if d.features_extended else math.nan
-        lines.append(f"| {key} | {v['measured']:.4g} | {v['model']:.4g} | {v['z']:+.2f} | {after:+.2f} |")
+        after = f"{d.features_extended[key]['z']:+.2f}" if d.features_extended else ""
+        lines.append(f"| {key} | {v['measured']:.4g} | {v['model']:.4g} | {v['z']:+.2f} | {after} |")
     lines += ["", "![features](features.png)", "", "## Candidates", "",
               "| candidate | score z | LR | LR p | held-out gain | estimate [95 %] | log BF |",
               "|---|---|---|---|---|---|---|"]
@@ -157,6 +157,8 @@ def _markdown(d: Diagnosis) -> str:
                      f"{r.get('lr_p', math.nan):.2g} | {r.get('held_out_gain', math.nan):.1f} | "
                      f"{est} | {r.get('log_bayes_factor', math.nan):.1f} |")
     lines += ["", "![candidates](candidates.png)", ""]
+    if d.next_walk:
+        lines += _next_walk_markdown(d.next_walk)
     if d.gain:
         g = d.gain
         lines += ["## Gain", "", f"{g['metric']}: base {g['base']:.1f}, extended {g['extended']:.1f}.",
@@ -168,6 +170,41 @@ def _markdown(d: Diagnosis) -> str:
         lines += ["", f"Predicted stability: max |eigenvalue| {eig['base']:#.4g} (base) -> "
                       f"{eig['extended']:#.4g} (extended).", ""]
     return "\n".join(lines) + "\n"
+
+
+def _next_walk_markdown(further: dict) -> list[str]:
+    """The report's section on the further walk that would break a tie."""
+    names = " and ".join(further["tied"])
+    lines = ["## Which further walk would tell them apart", ""]
+    if "reason" in further:
+        return lines + [f"{names} are tied; the further walks could not be weighed: "
+                        f"{further['reason']}.", ""]
+    lines += [f"{names} are tied on this walk. Weighed by {further['method']}. Gap: the hidden "
+              f"cause's likelihood ratio less its nearest rival's (the rule asks for {SEPARATION:.1f}), "
+              "the least over the tied causes; named: the least share of noise draws in which the "
+              "rule names the hidden cause.", "",
+              "| further walk | change | its gait's max abs eigenvalue | gap (nearest rival) | named |",
+              "|---|---|---|---|---|"]
+    same = further["same_again"]
+    lines.append(f"| the same walk again | none | | {_gap_cell(same)} | {same['named_rate']:.0%} |")
+    for r in further["conditions"]:
+        change = f"{r['parameter']} {r['from']:.4g} -> {r['to']:.4g}"
+        if "reason" in r:
+            lines.append(f"| {r['label']} | {change} | | not weighed: {r['reason']} | |")
+            continue
+        lines.append(f"| {r['label']} | {change} | {r['max_abs_eigenvalue']:.3f}"
+                     f"{'' if r['stable'] else ' (unstable)'} | {_gap_cell(r)} | {r['named_rate']:.0%} |")
+    lines += ["", (f"Suggested: a further walk with {further['suggestion']}, analysed with this one "
+                   "(`toywalk diagnose THIS.csv NEXT.csv --params THIS.toml --params NEXT.toml`)."
+                   if further["suggestion"] else
+                   "None of these walks would tell them apart; a measurement of the candidates "
+                   "themselves (the hinge's friction, the foot's grip) would."), ""]
+    return lines
+
+
+def _gap_cell(row: dict) -> str:
+    worst = min(row["results"], key=lambda r: r["gap"])
+    return f"{worst['gap']:.1f} ({worst['hidden']} against {worst['nearest']})"
 
 
 def write_summary_diagnosis(diagnosis, folder: Path, inputs: dict | None = None) -> list[Path]:

@@ -62,7 +62,7 @@ from .sample import worker_pool
 
 __all__ = ["ALPHA", "MAX_EXTENDED", "PARAMETERS", "SEPARATION", "Candidate", "Diagnosis",
            "DiagnoseError", "FitPool", "Verdict", "candidates", "complete_rows", "diagnose", "held_out",
-           "held_out_fits", "held_out_score", "held_out_tasks", "lr_p_value", "run_fits"]
+           "held_out_fits", "held_out_score", "held_out_tasks", "lr_p_value", "run_fits", "tied"]
 
 #: Family-wise false-alarm rate of the verdict.
 ALPHA = 0.01
@@ -223,7 +223,12 @@ class Diagnosis(Verdict):
     alpha : float
     seconds : dict
         Wall time of each stage (s): the base fit, the screening, each candidate's fit (its CPU
-        time in a worker), the held-out folds, the pair fit, and the total.
+        time in a worker), the held-out folds, the pair fit, the further walks weighed, and the
+        total.
+    next_walk : dict or None
+        Where candidates are left tied: which further walk would tell them apart
+        (:func:`toywalk.sysid.design.next_walk`; ``tied`` and ``reason`` where it could not be
+        weighed); None otherwise.
     """
 
     base: FitResult
@@ -235,12 +240,14 @@ class Diagnosis(Verdict):
     rule: str
     alpha: float
     seconds: dict = dataclasses.field(default_factory=dict)
+    next_walk: dict | None = None
 
     def to_json(self) -> dict:
         return {
             "verdict": self.verdict, "cause": self.cause, "causes": self.causes,
             "ranking": self.ranking, "gain": self.gain, "evidence": self.evidence,
             "rule": self.rule, "alpha": self.alpha, "seconds": self.seconds,
+            "next_walk": self.next_walk,
             "base": {"free": self.base.free, "estimates": self.base.estimates, "std": self.base.std,
                      "chi2": self.base.chi2, "n_residuals": self.base.n_residuals,
                      "noise_sd": self.base.noise_sd, "noise_source": self.base.noise_source,
@@ -467,7 +474,7 @@ def _masked(table: TrajectoryTable, obs, held_steps: np.ndarray, sd: dict) -> Tr
 
 def diagnose(table: TrajectoryTable, params: Params, *, free=(), effects=None, parameters=None,
              alpha: float = ALPHA, model: str = "periodic", progress=None, workers: int = 1,
-             scheduler: str | None = None, **fit_options) -> Diagnosis:
+             scheduler: str | None = None, tie_design: bool = True, **fit_options) -> Diagnosis:
     """Find what the base model lacks (module docstring).
 
     Parameters
@@ -489,16 +496,20 @@ def diagnose(table: TrajectoryTable, params: Params, *, free=(), effects=None, p
     workers, scheduler
         The candidates' fits and the held-out folds in ``workers`` local processes or on a Dask
         cluster (:func:`run_fits`).
+    tie_design : bool
+        When candidates are left tied (within :data:`SEPARATION`), weigh which further walk
+        would tell them apart (:func:`toywalk.sysid.design.next_walk`, ``Diagnosis.next_walk``).
     **fit_options
         Passed to every fit (``offsets``, ``priors``, ``strikes``, ...).
     """
     with FitPool(workers, scheduler) as pool:
         return _diagnose(table, params, free=free, effects=effects, parameters=parameters, alpha=alpha,
-                         model=model, progress=progress, pool=pool, **fit_options)
+                         model=model, progress=progress, pool=pool, tie_design=tie_design,
+                         **fit_options)
 
 
 def _diagnose(table: TrajectoryTable, params: Params, *, free, effects, parameters, alpha: float,
-              model: str, progress, pool: FitPool, **fit_options) -> Diagnosis:
+              model: str, progress, pool: FitPool, tie_design: bool, **fit_options) -> Diagnosis:
     say = progress or (lambda _msg: None)
     clock = time.perf_counter()
     seconds: dict = {}
@@ -662,12 +673,52 @@ def _diagnose(table: TrajectoryTable, params: Params, *, free, effects, paramete
                          f"equally well (chi-square {best['lr']:.1f} against {passing[1]['lr']:.1f})")
     else:
         evidence += "; no candidate's likelihood ratio is significant"
+    further = None
+    close = tied(fitted, level) if named is None and tie_design else []
+    if close:
+        from .design import DesignError, next_walk  # the design builds on this module's rule
+
+        say(f"which further walk would tell apart {' and '.join(r['effect'] for r in close)}")
+        lap = time.perf_counter()
+        hidden = {r["effect"]: r["estimate"][r["effect"]] - by_name[r["effect"]].base for r in close}
+        try:
+            further = next_walk(table, base, cands, hidden, pool=pool, alpha=alpha, **fit_options)
+        except (DesignError, FitError) as err:
+            further = {"tied": list(hidden), "reason": str(err)}
+        seconds["next_walk"] = time.perf_counter() - lap
+        evidence += _further_evidence(further)
     complete_rows(ranking)
     ranking.sort(key=lambda r: (-r["lr"] if "lr" in r else math.inf, r["score_log_p"]))
     named_causes = causes if cause != "unexplained" else []
     return Diagnosis("discrepancy", cause if causes else "unexplained", named_causes, ranking,
                      gain_block, evidence, base, extended, res_base, res_ext, features,
-                     features_ext, RULE, alpha, dict(seconds, total=time.perf_counter() - clock))
+                     features_ext, RULE, alpha, dict(seconds, total=time.perf_counter() - clock),
+                     further)
+
+
+def tied(ranking: list[dict], level: float) -> list[dict]:
+    """The candidates a walk leaves tied: the fitted ones significant at ``level`` whose
+    likelihood ratios come within :data:`SEPARATION` of the best one's, best first (empty when
+    the best stands alone or none is significant)."""
+    passing = sorted((r for r in ranking if r.get("fitted") and r.get("lr_p", 1.0) < level),
+                     key=lambda r: -r["lr"])
+    if len(passing) < 2:
+        return []
+    close = [r for r in passing if passing[0]["lr"] - r["lr"] < SEPARATION]
+    return close if len(close) > 1 else []
+
+
+def _further_evidence(further: dict) -> str:
+    """The evidence's clause on the further walk that would break a tie (:func:`_diagnose`)."""
+    if "reason" in further:
+        return f"; which further walk would tell them apart could not be weighed ({further['reason']})"
+    if further["suggestion"] is None:
+        return ("; no further walk weighed (a steeper or flatter ramp, the masses moved) would tell "
+                "them apart")
+    row = next(r for r in further["conditions"] if r["label"] == further["suggestion"])
+    return (f"; a further walk with {row['label']} would tell them apart (first order: "
+            f"{row['gap']:.0f} in chi-square, named in {100 * row['named_rate']:.0f} % of noise draws; "
+            f"the same walk again: {further['same_again']['gap']:.1f})")
 
 
 def complete_rows(ranking: list) -> list:
