@@ -30,7 +30,7 @@ def toy():
 
 
 def test_one_walk_is_the_single_fit_and_a_walk_twice_halves_the_variance(toy):
-    """The joint problem of one walk is the single fit's (same NLP, same stages): the same
+    """The joint problem of one walk is the single fit's (same NLP, the same optimum): the same
     estimates, SEs and chi-square; the same walk given twice doubles the chi-square and the
     information, so the estimates stay and the SEs shrink by sqrt(2)."""
     table, _ = _walk(toy, 12, 0.002, 401)
@@ -91,8 +91,9 @@ def _two_slopes():
 
 
 def test_walks_on_two_slopes_reach_the_model_strikes_through_the_stage_path():
-    """The joint fit goes from the measured strikes to the model's through the single fit's
-    blends (fit._STAGE_PATH). compass-3d with hip damping hidden (0.002 N m s/rad), 16 steps on
+    """Where the joint fit's jump from the measured strikes to the model's ends far above the
+    aligned misfit (walks._JUMP_LIMIT), it goes again through the single fit's blends
+    (fit._STAGE_PATH). compass-3d with hip damping hidden (0.002 N m s/rad), 16 steps on
     its slope and on 0.8 of it (`toywalk simulate --noise 0.002`, seeds 31 and 32): in one jump
     the base fit ended at chi-square 3.2e6 on 5362 residuals with the lateral offset at 0.179 m
     (truth 0.02); through the path at 8113, the offset 0.0172 (the fit's other free parameter, the
@@ -113,7 +114,7 @@ def test_a_base_stuck_in_another_minimum_is_screened_and_beaten_again(monkeypatc
     screening is redone at that base, and the candidates' fits that stood above it are refitted
     from it. Before, the scores stayed at the first base (about 1500, where a score cannot
     exceed the residuals' norm) and the dry friction's likelihood ratio read 0, p = 1."""
-    monkeypatch.setattr(walks_module, "_STAGE_PATH", (1.0,))
+    monkeypatch.setattr(walks_module, "_JUMP_LIMIT", math.inf)  # the jump, never the path
     tables, walkers = _two_slopes()
     d = diagnose_walks(tables, walkers, free=FREE, effects=["hip_damping", "hip_coulomb"],
                        parameters=[], workers=2)
