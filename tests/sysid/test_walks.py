@@ -90,6 +90,7 @@ def _two_slopes():
     return tables, walkers
 
 
+@pytest.mark.slow
 def test_walks_on_two_slopes_reach_the_model_strikes_through_the_stage_path():
     """Where the joint fit's jump from the measured strikes to the model's ends far above the
     aligned misfit (walks._JUMP_LIMIT), it goes again through the single fit's blends
