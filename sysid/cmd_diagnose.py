@@ -100,11 +100,16 @@ def cmd_diagnose(args) -> int:
         g = result.gain
         print(f"held-out chi-square {g['base']:.1f} -> {g['extended']:.1f}; max |eigenvalue| "
               f"{g['max_abs_eigenvalue']['base']:#.4g} -> {g['max_abs_eigenvalue']['extended']:#.4g}")
+    _print_next_walk(result)
+    print(f"report -> {out / 'report.md'}")
+    return 0
+
+
+def _print_next_walk(result) -> None:
+    """The suggested further walk, where the analysis left causes tied and weighed one."""
     if result.next_walk and result.next_walk.get("suggestion"):
         print(f"next walk: {result.next_walk['suggestion']} (report.md, 'Which further walk would "
               "tell them apart')")
-    print(f"report -> {out / 'report.md'}")
-    return 0
 
 
 def _split(text):
@@ -215,6 +220,7 @@ def _walks(args, out) -> int:
         extra = (f", likelihood ratio {row['lr']:.1f} (p = {row['lr_p']:.2g})" if "lr" in row else "")
         z = f"score z {row['score_z']:+.2f}" if "score_z" in row else "not screened"
         print(f"  {row['effect']:<32s} {z}{extra}")
+    _print_next_walk(result)
     print(f"report -> {out / 'report.md'}")
     return 0
 

@@ -197,24 +197,26 @@ CONDITIONS = (
 )
 
 
-def next_walk(table: TrajectoryTable, base: FitResult, candidates: Sequence[Candidate],
-              hidden: dict, *, conditions: Sequence[Condition] = CONDITIONS, pool: FitPool | int = 1,
+def next_walk(tables: Sequence[TrajectoryTable], bases: Sequence[FitResult],
+              candidates: Sequence[Candidate], hidden: dict, *,
+              conditions: Sequence[Condition] = CONDITIONS, pool: FitPool | int = 1,
               draws: int = 2000, alpha: float = ALPHA, rng=0, **fit_options) -> dict:
-    """Which further walk, analysed with the measured one, would tell apart the tied causes
+    """Which further walk, analysed with the measured ones, would tell apart the tied causes
     ``hidden`` (first order about the base fit: :func:`separation`).
 
-    For each condition the base walker (``base.params``) is changed, its gait followed there from
-    the base fit's by continuation, and a noise-free walk of it simulated with the measured walk's
-    steps, sample rate and signals; the base model is fitted to that walk with the base fit's
-    noise SDs (:func:`walk_columns`). Each tied cause is then hidden at its fitted change from its
-    base value, in the measured walk and the further one alike, and the gaps to every other
-    candidate and the rule's naming rate computed; one more walk under the same condition is the
-    reference (as much data again, no new direction).
+    For each condition the first walk's fitted walker (``bases[0].params``) is changed, its gait
+    followed there from the base fit's by continuation, and a noise-free walk of it simulated
+    with the first walk's steps, sample rate and signals; the base model is fitted to that walk
+    with the first base fit's noise SDs (:func:`walk_columns`). Each tied cause is then hidden at
+    its fitted change from its base value, in the measured walks and the further one alike, and
+    the gaps to every other candidate and the rule's naming rate computed; one more walk like the
+    first is the reference (as much data again, no new direction).
 
     Parameters
     ----------
-    table : TrajectoryTable
-        The measured walk; ``base`` its base fit.
+    tables : sequence of TrajectoryTable
+        The measured walks (one, or several analysed together); ``bases`` their base fits (of
+        a joint fit, :attr:`toywalk.sysid.walks.WalksFit.walks`).
     candidates : sequence of Candidate
         The analysis's candidates.
     hidden : dict of str to float
@@ -239,10 +241,16 @@ def next_walk(table: TrajectoryTable, base: FitResult, candidates: Sequence[Cand
         one whose gait is stable when the measured walker's is; None when none does) and
         ``method``.
     """
+    if not tables or len(tables) != len(bases):
+        raise DesignError(f"need one base fit per walk, at least one walk: got {len(tables)} walks "
+                          f"and {len(bases)} fits")
+    table, base = tables[0], bases[0]
     free, names = list(base.free), [c.name for c in candidates]
-    jac, _ = held_jacobian(table, base, names)
     k = len(free) + len(names)
-    own = WalkColumns(jac[:, :k], jac[:, k:], free + names, len(free), "measured")
+    own = []
+    for i, (t, b) in enumerate(zip(tables, bases, strict=True)):
+        jac, _ = held_jacobian(t, b, names)
+        own.append(WalkColumns(jac[:, :k], jac[:, k:], free + names, len(free), f"measured {i + 1}"))
     steps = max(len([e for e in table.events if e.get("time") is not None]) - 1, 1)
     rate = 1.0 / float(np.median(np.diff(table.time)))
     signals = [n for n in ("lean", "steer", "pitch_left", "pitch_right", "contact_x", "contact_y")
@@ -271,17 +279,18 @@ def next_walk(table: TrajectoryTable, base: FitResult, candidates: Sequence[Cand
             row["reason"] = walk
         else:
             row.update(max_abs_eigenvalue=walk["max_abs_eigenvalue"], stable=walk["stable"],
-                       **summary([own, walk["columns"]]))
+                       **summary([*own, walk["columns"]]))
         rows.append(row)
     want_stable = bool(gait.get("stable", False))
     usable = [r for r in rows if "named_rate" in r and r["named_rate"] >= 0.5
               and r["gap"] >= SEPARATION and (r["stable"] or not want_stable)]
     best = max(usable, key=lambda r: (r["named_rate"], r["gap"])) if usable else None
-    return {"tied": list(hidden), "conditions": rows, "same_again": summary([own, own]),
+    return {"tied": list(hidden), "conditions": rows, "same_again": summary([*own, own[0]]),
             "suggestion": best["label"] if best else None,
-            "method": ("first order about the base fit (toywalk.sysid.design): the measured walk "
-                       "and one further walk analysed together, each tied cause hidden at its "
-                       f"fitted change, {draws} noise draws for the naming rate")}
+            "method": ("first order about the base fit (toywalk.sysid.design): the measured "
+                       f"walk{'s' if len(tables) > 1 else ''} and one further walk analysed "
+                       "together, each tied cause hidden at its fitted change, "
+                       f"{draws} noise draws for the naming rate")}
 
 
 def _further_walk(task: dict):

@@ -179,14 +179,14 @@ def _next_walk_markdown(further: dict) -> list[str]:
     if "reason" in further:
         return lines + [f"{names} are tied; the further walks could not be weighed: "
                         f"{further['reason']}.", ""]
-    lines += [f"{names} are tied on this walk. Weighed by {further['method']}. Gap: the hidden "
+    lines += [f"{names} are tied. Weighed by {further['method']}. Gap: the hidden "
               f"cause's likelihood ratio less its nearest rival's (the rule asks for {SEPARATION:.1f}), "
               "the least over the tied causes; named: the least share of noise draws in which the "
               "rule names the hidden cause.", "",
               "| further walk | change | its gait's max abs eigenvalue | gap (nearest rival) | named |",
               "|---|---|---|---|---|"]
     same = further["same_again"]
-    lines.append(f"| the same walk again | none | | {_gap_cell(same)} | {same['named_rate']:.0%} |")
+    lines.append(f"| the (first) walk again | none | | {_gap_cell(same)} | {same['named_rate']:.0%} |")
     for r in further["conditions"]:
         change = f"{r['parameter']} {r['from']:.4g} -> {r['to']:.4g}"
         if "reason" in r:
@@ -194,8 +194,8 @@ def _next_walk_markdown(further: dict) -> list[str]:
             continue
         lines.append(f"| {r['label']} | {change} | {r['max_abs_eigenvalue']:.3f}"
                      f"{'' if r['stable'] else ' (unstable)'} | {_gap_cell(r)} | {r['named_rate']:.0%} |")
-    lines += ["", (f"Suggested: a further walk with {further['suggestion']}, analysed with this one "
-                   "(`toywalk diagnose THIS.csv NEXT.csv --params THIS.toml --params NEXT.toml`)."
+    lines += ["", (f"Suggested: a further walk with {further['suggestion']}, analysed with these "
+                   "(`toywalk diagnose THIS.csv ... NEXT.csv --params THIS.toml ... --params NEXT.toml`)."
                    if further["suggestion"] else
                    "None of these walks would tell them apart; a measurement of the candidates "
                    "themselves (the hinge's friction, the foot's grip) would."), ""]
@@ -427,4 +427,6 @@ def _walks_markdown(d) -> str:
                      f"{_num(r.get('lr_p'), '.2g')} | {_num(est, '.4g')} | "
                      + (f"[{low:.4g}, {high:.4g}]" if low is not None else "-") + " |")
     lines.append("")
+    if d.next_walk:
+        lines += _next_walk_markdown(d.next_walk)
     return "\n".join(lines)

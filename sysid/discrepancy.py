@@ -682,7 +682,7 @@ def _diagnose(table: TrajectoryTable, params: Params, *, free, effects, paramete
         lap = time.perf_counter()
         hidden = {r["effect"]: r["estimate"][r["effect"]] - by_name[r["effect"]].base for r in close}
         try:
-            further = next_walk(table, base, cands, hidden, pool=pool, alpha=alpha, **fit_options)
+            further = next_walk([table], [base], cands, hidden, pool=pool, alpha=alpha, **fit_options)
         except (DesignError, FitError) as err:
             further = {"tied": list(hidden), "reason": str(err)}
         seconds["next_walk"] = time.perf_counter() - lap

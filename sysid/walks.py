@@ -45,6 +45,7 @@ from .discrepancy import (
     DiagnoseError,
     FitPool,
     Verdict,
+    _further_evidence,
     _masked,
     _strides,
     candidates,
@@ -53,6 +54,7 @@ from .discrepancy import (
     held_out_score,
     lr_p_value,
     run_fits,
+    tied,
 )
 from .fit import (
     _STAGE_PATH,
@@ -323,6 +325,9 @@ class WalksDiagnosis(Verdict):
     features, features_extended : list of dict, or None
         Each walk's gait-feature misfits (:func:`toywalk.sysid.residuals.feature_misfit`) at the
         base fit and at the picked cause's (None as ``residuals_extended``).
+    next_walk : dict or None
+        Where candidates are left tied: which further walk would tell them apart
+        (:func:`toywalk.sysid.design.next_walk`); None otherwise.
     """
 
     base: WalksFit
@@ -334,6 +339,7 @@ class WalksDiagnosis(Verdict):
     residuals_extended: list | None = None
     features: list = dataclasses.field(default_factory=list)
     features_extended: list | None = None
+    next_walk: dict | None = None
 
     def to_json(self) -> dict:
         """``report.json`` (pipeline.md's fields, and each walk's base fit)."""
@@ -355,7 +361,8 @@ class WalksDiagnosis(Verdict):
                 "residuals": [r.to_json() for r in self.residuals],
                 "residuals_extended": None if self.residuals_extended is None else
                 [r.to_json() for r in self.residuals_extended],
-                "features": self.features, "features_extended": self.features_extended}
+                "features": self.features, "features_extended": self.features_extended,
+                "next_walk": self.next_walk}
 
 
 #: A joint fit's jump from the measured strikes to the model's is redone through the blends of
@@ -488,7 +495,7 @@ def _pattern_note(reports: list[ResidualReport]) -> str:
 def diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], *, free=(),
                    effects=None, parameters=None, alpha: float = ALPHA, noise_sd: dict | None = None,
                    progress=None, workers: int = 1, scheduler: str | None = None,
-                   **fit_options) -> WalksDiagnosis:
+                   tie_design: bool = True, **fit_options) -> WalksDiagnosis:
     """What the base model lacks, from several walks of one walker under known conditions
     (:func:`fit_walks`); the single walk's analysis is :func:`toywalk.sysid.discrepancy.diagnose`.
 
@@ -507,6 +514,9 @@ def diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], 
        joint fits, made only for a candidate that leads by the separation); each walk's residuals
        are tested for a pattern repeated every step, at the base fit and at the picked cause's.
 
+    5. Where candidates are left tied, which further walk would tell them apart
+       (:func:`toywalk.sysid.design.next_walk`, unless ``tie_design`` is False).
+
     Parameters are those of :func:`toywalk.sysid.discrepancy.diagnose` (``params`` one per walk;
     ``workers`` processes or a Dask ``scheduler`` run the candidates' fits side by side, and the
     held-out folds' four); ``fit_options`` go to :func:`fit_walks`.
@@ -514,12 +524,12 @@ def diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], 
     with FitPool(workers, scheduler) as pool:
         return _diagnose_walks(tables, params, free=free, effects=effects, parameters=parameters,
                                alpha=alpha, noise_sd=noise_sd, progress=progress, pool=pool,
-                               **fit_options)
+                               tie_design=tie_design, **fit_options)
 
 
 def _diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], *, free, effects,
                     parameters, alpha: float, noise_sd: dict | None, progress, pool: FitPool,
-                    **fit_options) -> WalksDiagnosis:
+                    tie_design: bool, **fit_options) -> WalksDiagnosis:
     say = progress or (lambda _msg: None)
     clock = time.perf_counter()
     if not 0 < alpha < 1:
@@ -601,6 +611,7 @@ def _diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params],
     ranking.sort(key=lambda r: -r.get("lr", -math.inf))
     significant = [r for r in ranking if "lr" in r and r["lr_p"] < alpha / k]
     held: dict = {}
+    further = None
     if not significant and quiet:
         verdict, cause, evidence = "adequate", None, ("no candidate's score test is significant and no "
                                                       "walk's residuals repeat a pattern every step")
@@ -636,6 +647,20 @@ def _diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params],
             verdict, cause = "discrepancy", "unexplained"
             evidence = (f"{lead['effect']} and {significant[1]['effect']} explain the walks within "
                         f"{gap:.1f} in chi-square (the rule asks {SEPARATION:.1f})")
+            close = tied(ranking, alpha / k) if tie_design else []
+            if close:
+                from .design import DesignError, next_walk  # the design builds on the rule
+
+                say(f"which further walk would tell apart {' and '.join(r['effect'] for r in close)}")
+                by_name = {c.name: c for c in cands}
+                hidden = {r["effect"]: r["estimate"][r["effect"]] - by_name[r["effect"]].base
+                          for r in close}
+                try:
+                    further = next_walk(tables, base.walks, cands, hidden, pool=pool, alpha=alpha,
+                                        **fit_options)
+                except (DesignError, FitError) as err:
+                    further = {"tied": list(hidden), "reason": str(err)}
+                evidence += _further_evidence(further)
     note = _pattern_note(patterns)
     if note:
         evidence += f"; the base model leaves a pattern repeated every step ({note})"
@@ -667,4 +692,4 @@ def _diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params],
                           ranking=ranking, gain=gain, evidence=evidence, base=base, extended=extended,
                           rule=WALKS_RULE, alpha=alpha, seconds=time.perf_counter() - clock,
                           residuals=patterns, residuals_extended=patterns_named, features=features,
-                          features_extended=features_named)
+                          features_extended=features_named, next_walk=further)

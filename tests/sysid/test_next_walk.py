@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from toywalk.model.parameters import load_params
 from toywalk.model.trajectory import TrajectoryTable
-from toywalk.sysid.diagnosis_report import write_diagnosis
+from toywalk.sysid.diagnosis_report import write_diagnosis, write_walks_diagnosis
 from toywalk.sysid.discrepancy import SEPARATION, diagnose, tied
 from toywalk.sysid.walks import diagnose_walks
 
@@ -78,6 +78,20 @@ def test_a_tie_suggests_the_further_walk_that_names_the_cause(tmp_path):
     report = json.loads((tmp_path / "report.json").read_text())
     assert report["next_walk"]["suggestion"] == further["suggestion"]
     assert f"Suggested: a further walk with {further['suggestion']}" in (tmp_path / "report.md").read_text()
+
+    # The same walk given twice and analysed as two walks stays tied (measured 0.4 apart), and
+    # the analysis of walks weighs a third the same way: a third like the first leaves 2.8, the
+    # ramps 531 and 355, the masses 5.1 and 5.2 (what separates is the new condition, not more of
+    # the old).
+    twice = diagnose_walks([first, first], [walker, walker], free=FREE, effects=EFFECTS,
+                           parameters=[], workers=2)
+    assert twice.cause == "unexplained" and twice.next_walk is not None, twice.evidence
+    rows_twice = {r["label"]: r for r in twice.next_walk["conditions"]}
+    assert twice.next_walk["same_again"]["gap"] < SEPARATION, twice.next_walk["same_again"]
+    assert min(r["gap"] for r in rows_twice.values() if r["parameter"] == "slope") > 5 * SEPARATION
+    assert rows_twice[twice.next_walk["suggestion"]]["parameter"] == "slope"
+    write_walks_diagnosis(twice, tmp_path / "twice")
+    assert "Which further walk would tell them apart" in (tmp_path / "twice" / "report.md").read_text()
 
     row = rows[further["suggestion"]]
     second_walker = walker.replace(slope=row["to"])
