@@ -296,17 +296,20 @@ def next_walk(tables: Sequence[TrajectoryTable], bases: Sequence[FitResult],
 def _further_walk(task: dict):
     """One condition's further walk and its columns (:func:`next_walk`), or why there is none (a
     string). Module level, so that worker processes can unpickle it."""
-    from toywalk.model.gait import GaitNotFound, continue_gait, find_gait
+    from toywalk.model.gait import continue_gait, find_gait
     from toywalk.model.simulate import simulate
 
     params, c = task["params"], task["condition"]
-    changed = params.replace(**{c.name: params.get(c.name) * c.factor})
+    try:
+        changed = params.replace(**{c.name: params.get(c.name) * c.factor})
+    except ValueError as err:  # the changed value outside the parameter's bounds
+        return f"the changed walker is not valid: {err}"
     try:
         if task["z_start"] is not None:
             gait = continue_gait(params, changed, np.asarray(task["z_start"]), planar=task["planar"])
         else:
             gait = find_gait(changed)
-    except GaitNotFound as err:
+    except RuntimeError as err:  # GaitNotFound, or a CasADi failure inside the search
         return f"no gait of the changed walker: {err}"
     traj = simulate(changed, gait.fixed_point, task["steps"], sample_rate=task["rate"],
                     planar=gait.planar)
