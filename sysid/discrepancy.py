@@ -62,7 +62,8 @@ from .sample import worker_pool
 
 __all__ = ["ALPHA", "MAX_EXTENDED", "PARAMETERS", "SEPARATION", "Candidate", "Diagnosis",
            "DiagnoseError", "FitPool", "Verdict", "candidates", "complete_rows", "diagnose", "held_out",
-           "held_out_fits", "held_out_score", "held_out_tasks", "lr_p_value", "run_fits", "tied"]
+           "held_out_fits", "held_out_score", "held_out_tasks", "lr_p_value", "run_fits", "tied",
+           "weigh_ties"]
 
 #: Family-wise false-alarm rate of the verdict.
 ALPHA = 0.01
@@ -676,15 +677,9 @@ def _diagnose(table: TrajectoryTable, params: Params, *, free, effects, paramete
     further = None
     close = tied(fitted, level) if named is None and tie_design else []
     if close:
-        from .design import DesignError, next_walk  # the design builds on this module's rule
-
-        say(f"which further walk would tell apart {' and '.join(r['effect'] for r in close)}")
         lap = time.perf_counter()
-        hidden = {r["effect"]: r["estimate"][r["effect"]] - by_name[r["effect"]].base for r in close}
-        try:
-            further = next_walk([table], [base], cands, hidden, pool=pool, alpha=alpha, **fit_options)
-        except (DesignError, FitError) as err:
-            further = {"tied": list(hidden), "reason": str(err)}
+        further = weigh_ties([table], [base], cands, close, pool=pool, alpha=alpha, say=say,
+                             **fit_options)
         seconds["next_walk"] = time.perf_counter() - lap
         evidence += _further_evidence(further)
     complete_rows(ranking)
@@ -706,6 +701,23 @@ def tied(ranking: list[dict], level: float) -> list[dict]:
         return []
     close = [r for r in passing if passing[0]["lr"] - r["lr"] < SEPARATION]
     return close if len(close) > 1 else []
+
+
+def weigh_ties(tables: list, bases: list, cands: list, close: list[dict], *, pool: FitPool,
+               alpha: float, say, **fit_options) -> dict:
+    """Which further walk would tell apart the candidates ``close`` (:func:`tied`) left by the
+    analysis of ``tables`` with base fits ``bases``: each hidden at its fitted change from its
+    base value (:func:`toywalk.sysid.design.next_walk`); ``tied`` and ``reason`` where the walks
+    cannot be weighed."""
+    from .design import DesignError, next_walk  # the design builds on this module's rule
+
+    say(f"which further walk would tell apart {' and '.join(r['effect'] for r in close)}")
+    by_name = {c.name: c for c in cands}
+    hidden = {r["effect"]: r["estimate"][r["effect"]] - by_name[r["effect"]].base for r in close}
+    try:
+        return next_walk(tables, bases, cands, hidden, pool=pool, alpha=alpha, **fit_options)
+    except (DesignError, FitError) as err:
+        return {"tied": list(hidden), "reason": str(err)}
 
 
 def _further_evidence(further: dict) -> str:

@@ -55,6 +55,7 @@ from .discrepancy import (
     lr_p_value,
     run_fits,
     tied,
+    weigh_ties,
 )
 from .fit import (
     _STAGE_PATH,
@@ -649,17 +650,8 @@ def _diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params],
                         f"{gap:.1f} in chi-square (the rule asks {SEPARATION:.1f})")
             close = tied(ranking, alpha / k) if tie_design else []
             if close:
-                from .design import DesignError, next_walk  # the design builds on the rule
-
-                say(f"which further walk would tell apart {' and '.join(r['effect'] for r in close)}")
-                by_name = {c.name: c for c in cands}
-                hidden = {r["effect"]: r["estimate"][r["effect"]] - by_name[r["effect"]].base
-                          for r in close}
-                try:
-                    further = next_walk(tables, base.walks, cands, hidden, pool=pool, alpha=alpha,
-                                        **fit_options)
-                except (DesignError, FitError) as err:
-                    further = {"tied": list(hidden), "reason": str(err)}
+                further = weigh_ties(tables, base.walks, cands, close, pool=pool, alpha=alpha,
+                                     say=say, **fit_options)
                 evidence += _further_evidence(further)
     note = _pattern_note(patterns)
     if note:
