@@ -93,6 +93,12 @@ class Trajectory:
         right = np.where(self.stance == "R", self.states[:, 4], self.states[:, 6])
         return left, right
 
+    def angles(self) -> dict[str, np.ndarray]:
+        """The four angles a trajectory file holds, by their column names (``lean``, ``steer``,
+        ``pitch_left``, ``pitch_right``; rad, shape (n,) each)."""
+        left, right = self.pitches()
+        return {"lean": self.lean, "steer": self.steer, "pitch_left": left, "pitch_right": right}
+
 
 def simulate(params: Params, z0: np.ndarray, steps: int, sample_rate: float | None = None,
              planar: bool = False, first_stance: str = "L", progress: bool = False,

@@ -282,8 +282,7 @@ def _simulate_to_file(params, steps: int, out: Path, noise: float, seed, source:
     gait = _find_gait(params)
     traj = simulate(params, gait.fixed_point, steps, planar=gait.planar, progress=sys.stderr.isatty())
     rng = np.random.default_rng(seed)
-    left, right = traj.pitches()
-    signals = {"lean": traj.lean, "steer": traj.steer, "pitch_left": left, "pitch_right": right}
+    signals = traj.angles()
     if noise > 0:
         signals = {k: v + rng.normal(0.0, noise, size=v.shape) for k, v in signals.items()}
         signals.update({f"{k}_sd": np.full(v.shape, noise) for k, v in list(signals.items())})

@@ -315,9 +315,7 @@ def _further_walk(task: dict):
                     planar=gait.planar)
     if traj.status != "completed":
         return f"the changed walker's walk stopped: {traj.message}"
-    left, right = traj.pitches()
-    series = {"lean": traj.lean, "steer": traj.steer, "pitch_left": left, "pitch_right": right,
-              "contact_x": traj.contact[:, 0], "contact_y": traj.contact[:, 1]}
+    series = {**traj.angles(), "contact_x": traj.contact[:, 0], "contact_y": traj.contact[:, 1]}
     events = [{"time": 0.0, "foot": "L"}] + [{"time": e.time, "foot": e.foot} for e in traj.events]
     walk = TrajectoryTable(traj.times, {n: series[n] for n in task["signals"]}, traj.stance, events, {})
     try:

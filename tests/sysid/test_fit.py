@@ -28,9 +28,7 @@ def _walk(params, steps, noise, seed, gait=None, steps_per_time_unit=16, z0=None
     z0 = gait.fixed_point if z0 is None else z0
     traj = simulate(params, z0, steps, steps_per_time_unit=steps_per_time_unit)
     rng = np.random.default_rng(seed)
-    left, right = traj.pitches()
-    signals = {"lean": traj.lean, "steer": traj.steer, "pitch_left": left, "pitch_right": right}
-    signals = {k: v + rng.normal(0.0, noise, v.shape) for k, v in signals.items()}
+    signals = {k: v + rng.normal(0.0, noise, v.shape) for k, v in traj.angles().items()}
     events = [{"time": 0.0, "foot": "L"}] + [{"time": e.time, "foot": e.foot} for e in traj.events]
     return TrajectoryTable(traj.times, signals, traj.stance, events, {}), gait
 
@@ -177,8 +175,7 @@ def test_intervals_are_calibrated_over_20_seeds(toy):
     start_gait = find_gait(start)
     gait = find_gait(toy)
     traj = simulate(toy, gait.fixed_point, 8)
-    left, right = traj.pitches()
-    clean = {"lean": traj.lean, "steer": traj.steer, "pitch_left": left, "pitch_right": right}
+    clean = traj.angles()
     strikes = [(0.0, "L")] + [(e.time, e.foot) for e in traj.events]
     free = ["foot_radius", "com_offset[1]"]
     z = []
