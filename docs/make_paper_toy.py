@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 from toywalk.model import Walker, load_params, solve_fixed_point
 from toywalk.model.files import strict_json
-from toywalk.sysid.discrepancy import PARAMETERS
+from toywalk.sysid.naming import PARAMETERS
 from toywalk.sysid.summary import read_summary
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))

@@ -47,7 +47,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).parent))
 from make_diagnose_validation import FREE, NOISE, TOY, _append, walk  # noqa: E402
 from toywalk.sysid.design import separation, walk_columns  # noqa: E402
-from toywalk.sysid.discrepancy import candidates  # noqa: E402
+from toywalk.sysid.naming import candidates  # noqa: E402
 from toywalk.sysid.walks import diagnose_walks  # noqa: E402
 
 HERE = Path(__file__).parent

@@ -97,9 +97,10 @@ def _analyse(out: Path, params_path: Path, sample: Path, workers: int, sample_st
     from toywalk.model.trajectory import read_trajectory
     from toywalk.sysid.cli import CommandError, _version
     from toywalk.sysid.diagnosis_report import write_diagnosis
-    from toywalk.sysid.discrepancy import DiagnoseError, diagnose
+    from toywalk.sysid.discrepancy import diagnose
     from toywalk.sysid.fit import CONTACT_KEYS, FitError
     from toywalk.sysid.measurement import MeasurementError, observations
+    from toywalk.sysid.naming import DiagnoseError
     from toywalk.sysid.sample import SampleError
     from toywalk.sysid.sample import sample as run_sampler
 

@@ -45,9 +45,10 @@ def cmd_diagnose(args) -> int:
     from toywalk.model.trajectory import read_trajectory
     from toywalk.sysid.cli import CommandError, _load, _version
     from toywalk.sysid.diagnosis_report import write_diagnosis
-    from toywalk.sysid.discrepancy import DiagnoseError, candidates, diagnose
+    from toywalk.sysid.discrepancy import diagnose
     from toywalk.sysid.fit import FitError, periodicity_test
     from toywalk.sysid.measurement import MeasurementError, observations
+    from toywalk.sysid.naming import DiagnoseError, candidates
     from toywalk.sysid.summary import is_summary_file
 
     out = Path(args.out)
@@ -91,8 +92,7 @@ def cmd_diagnose(args) -> int:
         raise CommandError(str(err)) from err
     write_diagnosis(result, out, {"trajectory": str(args.trajectory), "params": str(args.params),
                                   "free": free, "model": model, "software": _version()})
-    print(f"verdict: {result.verdict}; cause: {result.cause}")
-    print(f"evidence: {result.evidence}")
+    _print_verdict(result)
     for row in result.ranking[:5]:
         extra = (f", likelihood ratio {row['lr']:.1f} (p = {row['lr_p']:.2g})" if "lr" in row else "")
         print(f"  {row['effect']:<32s} score z {row['score_z']:+.2f}{extra}")
@@ -103,6 +103,18 @@ def cmd_diagnose(args) -> int:
     _print_next_walk(result)
     print(f"report -> {out / 'report.md'}")
     return 0
+
+
+def _print_verdict(result, suffix: str = "") -> None:
+    """The verdict, the effective description of a 'partly explained' one, and the evidence."""
+    from toywalk.sysid.diagnosis_report import explanation_line
+
+    print(f"verdict: {result.verdict}; cause: {result.cause}{suffix}")
+    e = result.effective
+    if e and not e["explains"]:
+        print(f"effective description (not a named cause): {' + '.join(e['candidates'])}; "
+              f"{explanation_line(e)}")
+    print(f"evidence: {result.evidence}")
 
 
 def _print_next_walk(result) -> None:
@@ -126,7 +138,7 @@ def _say(message: str) -> None:
 
 def _alpha(args) -> float:
     from toywalk.sysid.cli import CommandError
-    from toywalk.sysid.discrepancy import ALPHA
+    from toywalk.sysid.naming import ALPHA
 
     alpha = ALPHA if args.alpha is None else args.alpha
     if not 0 < alpha < 1:
@@ -167,9 +179,9 @@ def _walks(args, out) -> int:
     from toywalk.model.trajectory import read_trajectory
     from toywalk.sysid.cli import CommandError, _load, _version
     from toywalk.sysid.diagnosis_report import write_walks_diagnosis
-    from toywalk.sysid.discrepancy import DiagnoseError, candidates
     from toywalk.sysid.fit import FitError, periodicity_test
     from toywalk.sysid.measurement import MeasurementError, observations
+    from toywalk.sysid.naming import DiagnoseError, candidates
     from toywalk.sysid.summary import is_summary_file
     from toywalk.sysid.walks import diagnose_walks
 
@@ -210,8 +222,7 @@ def _walks(args, out) -> int:
         raise CommandError(str(err)) from err
     write_walks_diagnosis(result, out, {"trajectories": paths, "params": files, "free": free,
                                         "model": model, "software": _version()})
-    print(f"verdict: {result.verdict}; cause: {result.cause} ({len(paths)} walks together)")
-    print(f"evidence: {result.evidence}")
+    _print_verdict(result, f" ({len(paths)} walks together)")
     held = result.gain.get("held_out")
     if held:
         print(f"held-out chi-square (alternate strides of every walk): base {held['base']:.1f}, "
@@ -230,7 +241,7 @@ def _summary(args, params, out) -> int:
     from toywalk.model.parameters import ParameterError
     from toywalk.sysid.cli import CommandError, _version
     from toywalk.sysid.diagnosis_report import write_summary_diagnosis
-    from toywalk.sysid.discrepancy import DiagnoseError
+    from toywalk.sysid.naming import DiagnoseError
     from toywalk.sysid.summary import SummaryError, diagnose_summary, read_summary
 
     if args.model != "auto":
@@ -246,8 +257,7 @@ def _summary(args, params, out) -> int:
         raise CommandError(str(err)) from err
     write_summary_diagnosis(result, out, {"summary": str(args.trajectory), "params": str(args.params),
                                           "free": free, "software": _version()})
-    print(f"verdict: {result.verdict}; cause: {result.cause}")
-    print(f"evidence: {result.evidence}")
+    _print_verdict(result)
     for row in result.ranking[:5]:
         if "chi2" in row:
             print(f"  {row['effect']:<32s} chi-square {row['chi2']:.2f} on {row['dof']} "

@@ -2,7 +2,7 @@
 
 A walk on its cycle can leave candidate causes tied: they move the gait along nearly one direction
 beyond what the base model's free parameters and the nuisances mimic, so their fits come within
-:data:`toywalk.sysid.discrepancy.SEPARATION` in chi-square and the analysis rightly says
+:data:`toywalk.sysid.naming.SEPARATION` in chi-square and the analysis rightly says
 ``unexplained``. A second walk of the same walker under a changed, known condition (another
 slope, a balance mass moved) sees the same causes along other directions. This module measures,
 before anyone films it, how far apart a set of walks analysed jointly would bring them.
@@ -39,8 +39,9 @@ from toywalk.model.parameters import Params
 from toywalk.model.trajectory import TrajectoryTable
 from toywalk.model.walker import STATE_NAMES
 
-from .discrepancy import ALPHA, SEPARATION, Candidate, FitPool, lr_p_value, run_fits
+from .discrepancy import FitPool, run_fits
 from .fit import FitError, FitResult, fit, held_jacobian
+from .naming import ALPHA, SEPARATION, Candidate, lr_p_value
 from .walks import stacked
 
 __all__ = ["CONDITIONS", "Condition", "DesignError", "WalkColumns", "next_walk", "separation",
@@ -102,7 +103,7 @@ def separation(walks: Sequence[WalkColumns], candidates: Sequence[Candidate], hi
     walks : sequence of WalkColumns
         One or more walks of the same walker, their shared columns named alike.
     candidates : sequence of Candidate
-        The analysis's candidates (:func:`toywalk.sysid.discrepancy.candidates`), each a shared
+        The analysis's candidates (:func:`toywalk.sysid.naming.candidates`), each a shared
         column of every walk.
     hidden : dict of str to float
         Hidden cause (a candidate's name) -> its change from the base value (its units).
@@ -119,7 +120,7 @@ def separation(walks: Sequence[WalkColumns], candidates: Sequence[Candidate], hi
         ``|y|^2``), ``gaps`` (candidate -> expected ``LR_hidden - LR_candidate`` without noise),
         ``nearest`` (the candidate of the smallest gap) and ``gap``, and ``named_rate`` (the
         share of ``draws`` in which the hidden cause is significant and ahead of every other
-        candidate by :data:`toywalk.sysid.discrepancy.SEPARATION`).
+        candidate by :data:`toywalk.sysid.naming.SEPARATION`).
     """
     if not walks:
         raise DesignError("no walks given")

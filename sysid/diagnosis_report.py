@@ -21,7 +21,8 @@ import numpy as np
 from toywalk.model.files import atomic_write_json, atomic_write_text, strict_json
 
 from .diagnostics import _save
-from .discrepancy import SEPARATION, Diagnosis
+from .discrepancy import Diagnosis
+from .naming import SEPARATION
 
 __all__ = ["numbers_figure", "write_diagnosis", "write_summary_diagnosis", "write_walks_diagnosis"]
 
@@ -127,12 +128,11 @@ def _candidate_figure(d: Diagnosis, folder: Path) -> Path:
 
 def _markdown(d: Diagnosis) -> str:
     lines = ["# Discrepancy analysis", "",
-             f"**Verdict:** {d.verdict}. **Cause:** {d.cause if d.cause is not None else 'none'}"
-             + (f" (both: {', '.join(d.causes)})" if len(d.causes) > 1 else "") + ".", "",
-             f"Evidence: {d.evidence}.", "",
+             *verdict_lines(d),
              f"Rule: {d.rule} (alpha = {d.alpha:g}, K = {len(d.ranking)} candidates).", "",
              "## Base model", "",
-             f"Free: {', '.join(d.base.free) or 'none'}; chi-square {d.base.chi2:.1f} over "
+             f"Model: {_model_words(d.base.model)}, used by every fit of the analysis. Free: "
+             f"{', '.join(d.base.free) or 'none'}; chi-square {d.base.chi2:.1f} over "
              f"{d.base.n_residuals} residuals; noise {d.base.noise_source}.", "",
              "| signal | RMS (deg) | repeated pattern p | Ljung-Box p | runs p |", "|---|---|---|---|---|"]
     for name, t in d.residuals.tests.items():
@@ -256,6 +256,48 @@ def numbers_figure(d, path: Path) -> Path:
     return _finish(fig, Path(path))
 
 
+def _model_words(model: str) -> str:
+    """How report.md names the fit's model of the walk."""
+    return {"periodic": "periodic (the walk on the model's limit cycle)",
+            "transient": "transient (a free start, the walk converging to or leaving the cycle)",
+            }.get(model, model)
+
+
+def verdict_lines(d) -> list[str]:
+    """The head of every analysis's report.md: the verdict, the cause, and whether the model with
+    it explains the data (the effective description of a ``partly explained`` verdict, which is
+    not a named cause), then the evidence."""
+    lines = [f"**Verdict:** {d.verdict}. **Cause:** {d.cause if d.cause is not None else 'none'}"
+             + (f" (both: {', '.join(d.causes)})" if len(d.causes) > 1 else "") + ".", ""]
+    e = d.effective
+    if e:
+        who = " + ".join(e["candidates"])
+        if e["explains"]:
+            lines += [f"The model with {who} explains the data: " + explanation_line(e) + ".", ""]
+        else:
+            lines += [f"**Partly explained.** {who} is an effective description, not a named cause: it "
+                      "may stand in for physics the library lacks. It leaves " + "; ".join(e["shortfalls"])
+                      + ". " + explanation_line(e) + ".", ""]
+    return lines + [f"Evidence: {d.evidence}.", ""]
+
+
+def explanation_line(e: dict) -> str:
+    """What a model leaves, in words: its share of the base model's excess misfit and each
+    signal's held-out RMS in noise SDs against the rule's limit (``Verdict.effective``)."""
+    parts = []
+    if e.get("share_of_excess_misfit") is not None and math.isfinite(e["share_of_excess_misfit"]):
+        parts.append(f"{100 * e['share_of_excess_misfit']:.0f} % of the base model's excess misfit removed")
+    if e["limit"]:
+        parts.append("held-out RMS in noise SDs (limit): " + ", ".join(
+            f"{k} {v:.2f} ({e['limit'][k]:.2f})" for k, v in e["remaining_in_noise_sd"].items()))
+    elif e["remaining_in_noise_sd"]:
+        parts.append("residuals in SDs: " + ", ".join(f"{k} {v:+.2f}"
+                                                      for k, v in e["remaining_in_noise_sd"].items()))
+    if e["not_judged"]:
+        parts.append("not judged: " + "; ".join(f"{k} ({v})" for k, v in e["not_judged"].items()))
+    return "; ".join(parts) or "no held-out prediction"
+
+
 def _num(v, fmt=".3g") -> str:
     return "-" if v is None or (isinstance(v, float) and not math.isfinite(v)) else format(v, fmt)
 
@@ -263,8 +305,7 @@ def _num(v, fmt=".3g") -> str:
 def _summary_markdown(d) -> str:
     data = d.data
     lines = ["# Discrepancy analysis from summary statistics", "",
-             f"**Verdict:** {d.verdict}. **Cause:** {d.cause if d.cause is not None else 'none'}.", "",
-             f"Evidence: {d.evidence}.", "",
+             *verdict_lines(d),
              f"Rule: {d.rule} (alpha = {d.alpha:g}, K = {len(d.ranking)} candidates).", "",
              "## The numbers", "",
              "| quantity | measured | SD | base model | (model - measured) / SD |",
@@ -375,10 +416,10 @@ def _walks_candidate_figure(d, folder: Path) -> Path:
 
 def _walks_markdown(d) -> str:
     lines = [f"# Discrepancy analysis of {len(d.base.walks)} walks together", "",
-             f"**Verdict:** {d.verdict}. **Cause:** {d.cause if d.cause is not None else 'none'}.", "",
-             f"Evidence: {d.evidence}.", "",
+             *verdict_lines(d),
              f"Rule: {d.rule} (alpha = {d.alpha:g}, K = {len(d.ranking)} candidates).", "",
              "## The walks (base fit)", "",
+             f"Model: {_model_words(d.base.walks[0].model)}, used by every fit of the analysis.", "",
              "| walk | chi-square | residuals | noise (rad) | noise from | max abs eigenvalue | "
              "pattern repeated every step |",
              "| --- | --- | --- | --- | --- | --- | --- |"]

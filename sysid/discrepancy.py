@@ -26,13 +26,18 @@ The procedure, and the rule that decides (``alpha`` is the family-wise false-ala
    1971, Ann. Math. Stat. 42:204; Gaussian posterior of the extended fit, prior normal about the
    base value with the candidate's :attr:`Candidate.prior_sd`, half-normal on a bounded null)
    is reported beside.
-5. **A cause is named** when its likelihood ratio's p-value is below ``alpha / K``, it predicts
-   the held-out strides better than the base (summed over both folds), and it beats every other
-   significant candidate by at least :data:`SEPARATION` in chi-square (a likelihood ratio of
-   100 between two one-parameter extensions). Two causes are named when the runner-up, added to
-   the named one, is itself significant at ``alpha / (K - 1)``.
-6. **Unexplained** when the data disagree with the base model but no candidate is decisive, or
-   when the extended model still leaves a pattern repeated every step.
+5. **The rule** (:func:`toywalk.sysid.naming.decide`, written once for every analysis): a cause
+   is named when its likelihood ratio's p-value is below ``alpha / K``, it predicts the held-out
+   strides better than the base (summed over both folds), it beats every other significant
+   candidate by at least :data:`SEPARATION` in chi-square, and the model with it explains the
+   walk (:func:`toywalk.sysid.naming.judge`: held-out RMS within the noise, measured without the
+   model; no pattern repeated every step; no gait feature missed; no correlation in time beyond
+   white noise where the noise is white). Two causes are named when the runner-up, added to the
+   named one, is itself significant at ``alpha / (K - 1)``.
+6. **Partly explained** when that candidate improves the model but does not explain the walk: it
+   is reported as an effective description (``Diagnosis.effective``), not as the cause.
+   **Unexplained** when the data disagree with the base model but no candidate is significant,
+   decisive, or better on held-out strides.
 """
 
 from __future__ import annotations
@@ -44,12 +49,33 @@ import time
 
 import numpy as np
 from scipy import special
-from toywalk.model.effects import EFFECTS
 from toywalk.model.parameters import Params
 from toywalk.model.trajectory import SIGNALS, TrajectoryTable
 
-from .fit import FitError, FitResult, fit, fit_bounds, gait_period, score_tests
+from .fit import FitError, FitResult, fit, gait_period, score_tests
 from .measurement import observations
+from .naming import (
+    ALPHA,
+    MAX_EXTENDED,
+    NOISE_GROUPS,
+    NOISE_WHITENESS,
+    PARAMETERS,
+    SEPARATION,
+    Candidate,
+    DiagnoseError,
+    Explanation,
+    Verdict,
+    candidates,
+    complete_rows,
+    decide,
+    judge,
+    lr_p_value,
+    noise_reference,
+    parameter_note,
+    rule_text,
+    tied,
+    white_components,
+)
 from .residuals import (
     NOISE_INFLATION,
     ResidualReport,
@@ -65,16 +91,6 @@ __all__ = ["ALPHA", "MAX_EXTENDED", "PARAMETERS", "SEPARATION", "Candidate", "Di
            "held_out_fits", "held_out_score", "held_out_tasks", "lr_p_value", "run_fits", "tied",
            "weigh_ties"]
 
-#: Family-wise false-alarm rate of the verdict.
-ALPHA = 0.01
-#: Base parameters that are candidate causes when the analysis holds them fixed: the foot's shape,
-#: where the balance masses sit, the hip width and the slope.
-PARAMETERS = ("foot_radius", "foot_lateral_radius", "com_offset[0]", "com_offset[1]",
-              "com_offset[2]", "hip_width", "slope")
-#: Candidates fitted in full after screening.
-MAX_EXTENDED = 4
-#: Chi-square margin by which a named cause must beat every other significant candidate.
-SEPARATION = 2.0 * math.log(100.0)
 #: IPOPT's iteration cap for a candidate's fit from the base fit: a candidate that does not
 #: converge from there in this many is not an explanation of the walk (measured: the hidden
 #: effect's fit converges in under 20).
@@ -92,113 +108,10 @@ _HELD_OUT_SD = 1e3
 #: resistance hidden); 3.5 to 8.7 with hip dry friction hidden (1.8e-4 N m, seed 202), an IPOPT
 #: "acceptable" exit 8 to 15 times the noise, from which the analysis named the slope.
 ANOTHER_MINIMUM = 2.0
-#: When the walk gives no noise SD, the base fit's residual RMS stands for it unless it is more
-#: than :data:`toywalk.sysid.residuals.NOISE_INFLATION` times the samples' own scatter: then it is
-#: mostly the base model's misfit, and the scatter is the noise, provided the scatter over every
-#: other sample is at most this many times that over every sample: noise correlated from sample to
-#: sample has less scatter than its SD, and is not used (on 12-step walks at 140 samples/s: 4 % of
-#: white signals exceed it, and 83 % of signals whose noise is a three-sample running mean).
-NOISE_WHITENESS = 1.3
-#: The kinds of signal whose noise is judged together (:func:`_scatter_check`).
-_NOISE_GROUPS = (("lean",), ("steer",), ("pitch_left", "pitch_right"))
-
-
-class DiagnoseError(ValueError):
-    """The analysis cannot be made (no base fit, no candidates); the message says why."""
-
-
-@dataclasses.dataclass(frozen=True)
-class Candidate:
-    """One candidate cause: a parameter-file name freed from its base value.
-
-    Attributes
-    ----------
-    name : str
-        ``effects.<name>`` or a parameter name.
-    kind : str
-        'effect' or 'parameter'.
-    base : float
-        Its value in the base model.
-    bounds : tuple of float
-        Physical bounds (the fit's).
-    side : int
-        +1 when the base value is on the lower bound (only increases are possible), -1 on the
-        upper one, 0 otherwise.
-    prior_sd : float
-        Scale of the Savage-Dickey prior: an effect's ``typical`` magnitude; a tenth of the leg
-        length for lengths; 0.02 rad for the slope.
-    breaks_symmetry : bool
-    """
-
-    name: str
-    kind: str
-    base: float
-    bounds: tuple
-    side: int
-    prior_sd: float
-    breaks_symmetry: bool
-
-
-def candidates(params: Params, free=(), effects=None, parameters=None) -> list[Candidate]:
-    """The candidate causes: the library's effects (or those named in ``effects``) and the
-    parameters of :data:`PARAMETERS` (or ``parameters``), less the free ones and those that
-    cannot move (both bounds at the base value)."""
-    names = []
-    chosen = list(EFFECTS) if effects is None else list(effects)
-    for name in chosen:
-        if name.removeprefix("effects.") not in EFFECTS:
-            raise DiagnoseError(f"unknown effect {name!r}; the library has {', '.join(EFFECTS)}")
-        names.append("effects." + name.removeprefix("effects."))
-    names += list(PARAMETERS if parameters is None else parameters)
-    out = []
-    for name in names:
-        if name in free:
-            continue
-        low, high = fit_bounds(params, list(free) + [name], name)
-        value = params.get(name)
-        tiny = 1e-12 * max(abs(value), 1.0)
-        if high - low <= tiny:
-            continue
-        side = 1 if value - low <= tiny else (-1 if high - value <= tiny else 0)
-        if name.startswith("effects."):
-            effect = EFFECTS[name.split(".", 1)[1]]
-            kind, prior, breaks = "effect", abs(effect.typical), effect.breaks_symmetry
-        else:
-            kind = "parameter"
-            prior = 0.02 if name == "slope" else 0.1 * params.leg_length
-            breaks = False
-        out.append(Candidate(name, kind, float(value), (float(low), float(high)), side, prior, breaks))
-    if not out:
-        raise DiagnoseError("no candidate causes left to test (all free or fixed by their bounds)")
-    return out
-
-
-@dataclasses.dataclass
-class Verdict:
-    """What every discrepancy analysis answers: the fields of ``report.json`` (pipeline.md).
-
-    Attributes
-    ----------
-    verdict : str
-        'adequate' or 'discrepancy'.
-    cause : str or None
-        The named cause, ``"unexplained"``, or None (adequate).
-    causes : list of str
-        Every named cause (two when two are decisive).
-    ranking : list of dict
-        Every candidate, best first.
-    gain : dict
-        The fit before and after the named cause, and the change in predicted stability.
-    evidence : str
-        What in the data pointed to the cause.
-    """
-
-    verdict: str
-    cause: str | None
-    causes: list
-    ranking: list
-    gain: dict
-    evidence: str
+# When the walk gives no noise SD, the base fit's residual RMS stands for it unless it is more
+# than toywalk.sysid.residuals.NOISE_INFLATION times the samples' own scatter: then it is mostly
+# the base model's misfit, and the scatter is the noise, provided the scatter is white
+# (naming.NOISE_WHITENESS).
 
 
 @dataclasses.dataclass
@@ -248,7 +161,7 @@ class Diagnosis(Verdict):
             "verdict": self.verdict, "cause": self.cause, "causes": self.causes,
             "ranking": self.ranking, "gain": self.gain, "evidence": self.evidence,
             "rule": self.rule, "alpha": self.alpha, "seconds": self.seconds,
-            "next_walk": self.next_walk,
+            "next_walk": self.next_walk, "effective": self.effective,
             "base": {"free": self.base.free, "estimates": self.base.estimates, "std": self.base.std,
                      "chi2": self.base.chi2, "n_residuals": self.base.n_residuals,
                      "noise_sd": self.base.noise_sd, "noise_source": self.base.noise_source,
@@ -259,18 +172,15 @@ class Diagnosis(Verdict):
         }
 
 
+#: What explaining a walk means (:func:`toywalk.sysid.naming.judge`), in words.
+EXPLAINS = ("per signal the held-out RMS within 1.1 times the noise, widened by 3 standard errors of "
+            "the noise estimate; no pattern repeated every step; no gait feature missed beyond "
+            "alpha over the features; no correlation in time beyond white noise where the noise is "
+            "known to be white")
+
 RULE = ("adequate: no candidate's score test below alpha/K and no signal with a pattern repeated "
-        "every step (Hotelling, alpha over the signals); a cause is named when its likelihood "
-        "ratio is below alpha/K, it predicts held-out strides better than the base, and it beats "
-        f"every other significant candidate by {SEPARATION:.1f} in chi-square; unexplained "
-        "otherwise, or when the extended model still leaves a repeated pattern")
-
-
-def lr_p_value(lr: float, bounded: bool) -> float:
-    """Likelihood-ratio p-value on one degree of freedom; a 50:50 mixture with zero for a null on
-    a physical bound (Self & Liang 1987, JASA 82:605)."""
-    p = float(special.chdtrc(1, max(lr, 0.0)))
-    return 0.5 * p if bounded else p
+        "every step (alpha over the signals); "
+        + rule_text(held_out="held-out strides (two folds of alternate strides)", explains=EXPLAINS))
 
 
 def _normal_log_density(x: float, mean: float, sd: float) -> float:
@@ -320,7 +230,8 @@ def held_out_tasks(table: TrajectoryTable, params: Params, free, noise: dict,
 
 def held_out_score(table: TrajectoryTable, fits: list, noise: dict) -> dict:
     """Score the two fold fits of :func:`held_out_tasks`: the held-out chi-square (with ``noise``)
-    overall and per signal, the held-out RMS per signal, and whether both fits converged. A fold
+    overall and per signal, the held-out RMS and samples per signal (``n_by_signal``), and whether
+    both fits converged. A fold
     whose fit could not be set up (a string) or did not converge leaves the chi-square NaN, with
     the ``reason``: a fit stopped on its way predicts nothing about the model."""
     obs = observations(table)
@@ -329,7 +240,7 @@ def held_out_score(table: TrajectoryTable, fits: list, noise: dict) -> dict:
               for k, f in enumerate(fits) if isinstance(f, str) or not f.success]
     if failed:
         return {"chi2": math.nan, "chi2_by_signal": {}, "rms": {}, "success": False, "n": 0,
-                "reason": "; ".join(failed)}
+                "n_by_signal": {}, "reason": "; ".join(failed)}
     chi2, per_signal, squares, counts = 0.0, {}, {}, {}
     for fold, result in zip((0, 1), fits, strict=True):
         held = np.isin(obs.step, np.flatnonzero(fold_of_step == fold))
@@ -345,7 +256,7 @@ def held_out_score(table: TrajectoryTable, fits: list, noise: dict) -> dict:
             counts[name] = counts.get(name, 0) + int(sel.sum())
     rms = {k: math.sqrt(squares[k] / counts[k]) for k in squares}
     return {"chi2": chi2, "chi2_by_signal": per_signal, "rms": rms,
-            "success": all(f.success for f in fits), "n": int(sum(counts.values()))}
+            "success": all(f.success for f in fits), "n": int(sum(counts.values())), "n_by_signal": counts}
 
 
 def held_out(table: TrajectoryTable, params: Params, free, noise: dict, warm: FitResult | None = None,
@@ -605,47 +516,56 @@ def _diagnose(table: TrajectoryTable, params: Params, *, free, effects, paramete
                    std=se, log_bayes_factor=_savage_dickey(est, se, by_name[name]),
                    max_abs_eigenvalue=ext.gait.get("max_abs_eigenvalue"))
     fitted = sorted((r for r in to_fit if r.get("fitted")), key=lambda r: -r["lr"])
-    passing = [r for r in fitted if r["lr_p"] < level]
-    held = {}
-    cause, causes, named = "unexplained", [], None
-    if passing:
-        best = passing[0]
-        say(f"held-out prediction by stride: base and {best['effect']}")
+    held: dict = {}
+    reference = noise_reference(obs, base.noise_sd, base.noise_source)
+
+    def held_out_gain(row: dict) -> tuple[float, str]:
+        name = row["effect"]
+        say(f"held-out prediction by stride: base and {name}")
         tasks = (held_out_tasks(table, base.params, free, noise, base, **options)
-                 + held_out_tasks(table, extended[best["effect"]].params, free + [best["effect"]],
-                                  noise, extended[best["effect"]], **options))
+                 + held_out_tasks(table, extended[name].params, free + [name], noise, extended[name],
+                                  **options))
         lap = time.perf_counter()
         fits = held_out_fits(tasks, pool)
         seconds["held_out"] = time.perf_counter() - lap
         held["base"] = held_out_score(table, fits[:2], noise)
-        held[best["effect"]] = held_out_score(table, fits[2:], noise)
-        gain = held["base"]["chi2"] - held[best["effect"]]["chi2"]
-        best["held_out_gain"] = gain
-        runner = passing[1] if len(passing) > 1 else None
-        separated = runner is None or best["lr"] - runner["lr"] >= SEPARATION
-        if gain > 0 and separated:
-            named = best
-            causes = [best["effect"]]
-            if runner is not None:
-                say(f"pair fit: {best['effect']} + {runner['effect']}")
-                pair = fit(table, extended[best["effect"]].params,
-                           free + [best["effect"], runner["effect"]], check_jacobian=False,
-                           warm=extended[best["effect"]], **candidate_options, **noise_opt)
-                seconds["pair"] = pair.seconds
-                lr_pair = extended[best["effect"]].chi2 - pair.chi2
-                bounded = bool(by_name[runner["effect"]].side)
-                if pair.success and lr_p_value(lr_pair, bounded) < alpha / max(k - 1, 1):
-                    causes.append(runner["effect"])
-                    extended["+".join(causes)] = pair
-    res_ext, features_ext, gain_block = None, None, {}
-    if named is not None:
-        ext = extended["+".join(causes)] if len(causes) > 1 else extended[causes[0]]
-        res_ext = residual_report(obs, ext.residuals, bins=res_base.bins, alpha=alpha)
-        features_ext = feature_misfit(obs, obs.value, obs.value + ext.residuals, ext.model_durations,
-                                      sigma=sigma, rng=0)
-        h_base, h_ext = held["base"], held[named["effect"]]
+        held[name] = held_out_score(table, fits[2:], noise)
+        reasons = "; ".join(h["reason"] for h in held.values() if h.get("reason"))
+        return held["base"]["chi2"] - held[name]["chi2"], reasons
+
+    def together(best: dict, runner: dict) -> bool:
+        say(f"pair fit: {best['effect']} + {runner['effect']}")
+        pair = fit(table, extended[best["effect"]].params, free + [best["effect"], runner["effect"]],
+                   check_jacobian=False, warm=extended[best["effect"]], **candidate_options, **noise_opt)
+        seconds["pair"] = pair.seconds
+        lr_pair = extended[best["effect"]].chi2 - pair.chi2
+        if pair.success and lr_p_value(lr_pair, bool(by_name[runner["effect"]].side)) < alpha / max(k - 1, 1):
+            extended[f"{best['effect']}+{runner['effect']}"] = pair
+            return True
+        return False
+
+    explained: dict = {}
+
+    def explain(names: list) -> Explanation:
+        ext = extended["+".join(names)]
+        report = residual_report(obs, ext.residuals, bins=res_base.bins, alpha=alpha)
+        misfit = feature_misfit(obs, obs.value, obs.value + ext.residuals, ext.model_durations,
+                                sigma=sigma, rng=0)
+        explained.update(fit=ext, residuals=report, features=misfit)
+        h_base, h_ext = held["base"], held[names[0]]
+        walk = {"rms": h_ext["rms"], "rms_base": h_base["rms"], "n": h_ext["n_by_signal"]}
+        return judge(names, held=[("", walk, reference)], patterns=[("", report)],
+                     features=[("", misfit)], alpha=alpha,
+                     whiteness=white_components(reference, report, base.noise_source))
+
+    decision = decide(fitted, level, explain=explain, held_out=held_out_gain, together=together)
+    res_ext, features_ext, gain_block = explained.get("residuals"), explained.get("features"), {}
+    if decision.explanation is not None:
+        ext, lead = explained["fit"], decision.lead["effect"]
+        h_base, h_ext = held["base"], held[lead]
         gain_block = {
             "metric": "held-out chi-square (two folds of alternate strides)",
+            "model": "+".join(decision.explanation.candidates),
             "base": h_base["chi2"], "extended": h_ext["chi2"],
             "held_out_rms": {"base": h_base["rms"], "extended": h_ext["rms"]},
             "chi2": {"base": base.chi2, "extended": ext.chi2},
@@ -655,27 +575,13 @@ def _diagnose(table: TrajectoryTable, params: Params, *, free, effects, paramete
             "features": {key: {"base": features[key]["z"], "extended": features_ext[key]["z"]}
                          for key in features},
         }
-        cause = causes[0]
-        if res_ext.systematic:
-            cause = "unexplained"
-            evidence += (f"; {' and '.join(causes)} improve the fit but leave a pattern repeated every "
-                         f"step in {', '.join(res_ext.systematic)}")
-    elif passing:
-        best = passing[0]
-        gain = best.get("held_out_gain", math.nan)
-        if math.isnan(gain):  # a fold's fit failed: held-out prediction could not be scored
-            reasons = "; ".join(h["reason"] for h in held.values() if h.get("reason"))
-            evidence += (f"; {best['effect']} fits better but its held-out prediction could not be "
-                         f"scored ({reasons or 'no held-out chi-square'})")
-        elif gain <= 0:
-            evidence += f"; {best['effect']} fits better but does not predict held-out strides better"
-        else:
-            evidence += (f"; {best['effect']} and {passing[1]['effect']} explain the data about "
-                         f"equally well (chi-square {best['lr']:.1f} against {passing[1]['lr']:.1f})")
-    else:
-        evidence += "; no candidate's likelihood ratio is significant"
+    if decision.reason:
+        evidence += f"; {decision.reason}"
+    if decision.causes:
+        note = parameter_note(decision.lead, by_name[decision.lead["effect"]])
+        evidence += f"; {note}" if note else ""
     further = None
-    close = tied(fitted, level) if named is None and tie_design else []
+    close = tied(fitted, level) if decision.tied and tie_design else []
     if close:
         lap = time.perf_counter()
         further = weigh_ties([table], [base], cands, close, pool=pool, alpha=alpha, say=say,
@@ -684,23 +590,10 @@ def _diagnose(table: TrajectoryTable, params: Params, *, free, effects, paramete
         evidence += _further_evidence(further)
     complete_rows(ranking)
     ranking.sort(key=lambda r: (-r["lr"] if "lr" in r else math.inf, r["score_log_p"]))
-    named_causes = causes if cause != "unexplained" else []
-    return Diagnosis("discrepancy", cause if causes else "unexplained", named_causes, ranking,
-                     gain_block, evidence, base, extended, res_base, res_ext, features,
-                     features_ext, RULE, alpha, dict(seconds, total=time.perf_counter() - clock),
-                     further)
-
-
-def tied(ranking: list[dict], level: float) -> list[dict]:
-    """The candidates a walk leaves tied: the fitted ones significant at ``level`` whose
-    likelihood ratios come within :data:`SEPARATION` of the best one's, best first (empty when
-    the best stands alone or none is significant)."""
-    passing = sorted((r for r in ranking if r.get("fitted") and r.get("lr_p", 1.0) < level),
-                     key=lambda r: -r["lr"])
-    if len(passing) < 2:
-        return []
-    close = [r for r in passing if passing[0]["lr"] - r["lr"] < SEPARATION]
-    return close if len(close) > 1 else []
+    return Diagnosis(decision.verdict, decision.cause, decision.causes, ranking, gain_block, evidence,
+                     base, extended, res_base, res_ext, features, features_ext, RULE, alpha,
+                     dict(seconds, total=time.perf_counter() - clock), further,
+                     effective=decision.explanation.to_json() if decision.explanation else None)
 
 
 def weigh_ties(tables: list, bases: list, cands: list, close: list[dict], *, pool: FitPool,
@@ -731,19 +624,6 @@ def _further_evidence(further: dict) -> str:
     return (f"; a further walk with {row['label']} would tell them apart (first order: "
             f"{row['gap']:.0f} in chi-square, named in {100 * row['named_rate']:.0f} % of noise draws; "
             f"the same walk again: {further['same_again']['gap']:.1f})")
-
-
-def complete_rows(ranking: list) -> list:
-    """The keys every ranking row of a report has (pipeline.md: ``effect``, ``score``,
-    ``estimate``, ``interval``), in place, where a candidate was not fitted: its score the
-    likelihood ratio where there is one, else the score statistic ``z^2`` (None without either),
-    and empty estimate and interval. Returns ``ranking``."""
-    for row in ranking:
-        if "score" not in row:
-            row["score"] = row["lr"] if "lr" in row else (row["score_z"] ** 2 if "score_z" in row else None)
-        row.setdefault("estimate", {})
-        row.setdefault("interval", {})
-    return ranking
 
 
 def _base_fit(table, params: Params, free, options: dict, say,
@@ -786,7 +666,7 @@ def _scatter_check(obs, base: FitResult) -> tuple[dict | None, list[str], str]:
     A signal whose residual RMS is more than :data:`NOISE_INFLATION` times its samples' scatter
     takes the scatter as its noise, provided its scatter is white (:data:`NOISE_WHITENESS`);
     when every signal's is, every signal takes its scatter. Otherwise each kind of signal
-    (:data:`_NOISE_GROUPS`: lean, steer, the pitches) is judged on its own: a fast pitch's
+    (:data:`NOISE_GROUPS`: lean, steer, the pitches) is judged on its own: a fast pitch's
     curvature can push its scatter over alternate samples past the limit (white noise or not),
     and should not keep a steer misfit ten times its noise standing for the steer's noise
     (docs/diagnosis.md, the cross slope at 10 noise SDs)."""
@@ -803,7 +683,7 @@ def _scatter_check(obs, base: FitResult) -> tuple[dict | None, list[str], str]:
     # judged by kind of signal: the two legs' pitches together, so that the weights keep the
     # walker's mirror symmetry (one pitch's scatter taken and the other's refused made a walk of
     # a symmetric walker score an uneven build at z = 3.1)
-    groups = [[n for n in group if n in ratio] for group in _NOISE_GROUPS]
+    groups = [[n for n in group if n in ratio] for group in NOISE_GROUPS]
     taken, refused = [], []
     for group in groups:
         if any(ratio[n] > NOISE_INFLATION for n in group):

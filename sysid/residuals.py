@@ -279,7 +279,9 @@ def scatter_noise(obs: Observations, order: int = SCATTER_ORDER) -> dict:
     -------
     dict
         Per signal of :data:`toywalk.model.trajectory.SIGNALS` measured: ``sd``, ``sd_alternate``
-        (rad; NaN with too few samples) and ``windows``, the differences behind ``sd``.
+        (rad; NaN with too few samples), ``windows``, the differences behind ``sd``, and
+        ``rel_se``, the relative standard error of ``sd`` from the step-to-step spread of the
+        steps' mean squares (the windows within a step overlap and are not independent).
     """
     out = {}
     for s_i, name in enumerate(SIGNALS):
@@ -293,10 +295,20 @@ def scatter_noise(obs: Observations, order: int = SCATTER_ORDER) -> dict:
             t, v = obs.time[sel][order_t], obs.value[sel][order_t]
             every.append(_differences(t, v, order))
             alternate += [_differences(t[first::2], v[first::2], order) for first in (0, 1)]
+        # the overlapping windows of a step are correlated, the steps are not: the mean square's
+        # standard error from the steps' own mean squares (a ratio estimator over the steps)
+        counts = np.array([len(e) for e in every], float)
+        squares = np.array([float(np.sum(e**2)) for e in every])
         every, alternate = np.concatenate(every), np.concatenate(alternate)
+        rel_se = math.nan
+        if len(every) and np.count_nonzero(counts) > 1 and squares.sum() > 0:
+            ms = squares.sum() / counts.sum()
+            se_ms = math.sqrt(float(np.sum((squares - ms * counts) ** 2))
+                              * len(counts) / (len(counts) - 1)) / counts.sum()
+            rel_se = 0.5 * se_ms / ms  # of the SD, the square root of the mean square
         out[name] = {"sd": float(np.sqrt(np.mean(every**2))) if len(every) else math.nan,
                      "sd_alternate": float(np.sqrt(np.mean(alternate**2))) if len(alternate) else math.nan,
-                     "windows": len(every)}
+                     "windows": len(every), "rel_se": rel_se}
     return out
 
 
@@ -382,9 +394,11 @@ def feature_misfit(obs: Observations, measured: np.ndarray, model: np.ndarray,
                 floor = math.sqrt(float(np.mean(obs.duration_sd**2))
                                   * (1.0 / np.sum(right) + 1.0 / np.sum(~right)))
                 se = math.hypot(se, floor)
+            # the fewer steps of a foot less one: a conservative count for two means' difference
+            dof = min(int(np.count_nonzero(np.isfinite(diff[side]))) for side in (right, ~right)) - 1
             out[f"{key}_right_minus_left"] = {
                 "measured": lr_meas, "model": lr_model, "difference": float(d), "se": se,
-                "z": float(d / se) if se > 0 else math.nan, "unit": unit}
+                "z": float(d / se) if se > 0 else math.nan, "unit": unit, "dof": dof}
     return out
 
 
@@ -487,4 +501,5 @@ def _summary(diff: np.ndarray, unit: str, got: np.ndarray, want: np.ndarray) -> 
                 "z": math.nan, "unit": unit}
     d, se = float(np.mean(diff[finite])), _se(diff)
     return {"measured": float(np.nanmean(got)), "model": float(np.nanmean(want)), "difference": d,
-            "se": se, "z": float(d / se) if se > 0 else math.nan, "unit": unit}
+            "se": se, "z": float(d / se) if se > 0 else math.nan, "unit": unit,
+            "dof": int(np.count_nonzero(finite)) - 1}

@@ -27,7 +27,7 @@ and the priors.
    which candidates point along the base's misfit (``alignment``, the cosine between the two
    vectors), and which the numbers cannot tell apart (sensitivity vectors within
    :data:`PARALLEL` of each other in cosine). Four numbers span at most four directions.
-3. **Each candidate freed in turn** (:func:`toywalk.sysid.discrepancy.candidates`: the library's
+3. **Each candidate freed in turn** (:func:`toywalk.sysid.naming.candidates`: the library's
    effects and the held base parameters), an effect's strength bounded to physical magnitudes (at
    most :data:`PHYSICAL` times its typical one, within its bounds), a length to
    :data:`LENGTH_REACH` tenths of a leg length either way. Its gait is first followed along
@@ -41,7 +41,7 @@ and the priors.
    both members' fits and the better kept.
 5. **A cause is named** when it is significant (p < ``alpha / K``), brings the model to the numbers
    (its chi-square p >= ``alpha``), and beats every other significant candidate by
-   :data:`toywalk.sysid.discrepancy.SEPARATION` in chi-square. A pair is named when no single
+   :data:`toywalk.sysid.naming.SEPARATION` in chi-square. A pair is named when no single
    candidate is, the pair brings the model to the numbers, adds significantly to each of its
    members (p < ``alpha / (K - 1)``), holds neither at its null value (95 % interval) and beats
    every other pair by the same margin. **Unexplained**
@@ -72,8 +72,19 @@ from toywalk.model.parameters import PARAMETER_NAMES, ParameterError, Params
 from toywalk.model.statics import can_stand
 from toywalk.model.walker import Walker
 
-from .discrepancy import ALPHA, SEPARATION, Candidate, DiagnoseError, Verdict, candidates, lr_p_value
 from .fit import fit_bounds
+from .naming import (
+    ALPHA,
+    SEPARATION,
+    Candidate,
+    DiagnoseError,
+    Explanation,
+    Verdict,
+    candidates,
+    decide,
+    lr_p_value,
+    rule_text,
+)
 
 __all__ = ["LENGTH_REACH", "NOT_VISIBLE", "PAIR_MEMBERS", "PARALLEL", "PHYSICAL", "SCAN_POINTS",
            "TARGETS", "SummaryData",
@@ -399,16 +410,27 @@ class SummaryDiagnosis(Verdict):
                 "ranking": self.ranking, "gain": self.gain, "evidence": self.evidence,
                 "rule": self.rule, "alpha": self.alpha, "data": self.data.to_json(),
                 "base": self.base.to_json(), "pairs": self.pairs, "sensitivity": self.sensitivity,
-                "fits": {k: f.to_json() for k, f in self.fits.items()}, "seconds": self.seconds}
+                "fits": {k: f.to_json() for k, f in self.fits.items()}, "seconds": self.seconds,
+                "effective": self.effective}
 
 
-RULE = ("adequate: the base model's chi-square of the numbers has p >= alpha; a cause is named "
-        "when its likelihood ratio is below alpha/K, it brings the model to the numbers (p >= "
-        f"alpha) and beats every other significant candidate by {SEPARATION:.1f} in chi-square; "
-        "a pair when no single cause is, the pair brings the model to the numbers, adds to each "
-        "member at alpha/(K-1), holds neither at its null value (95 % interval) and beats every "
-        f"other pair by {SEPARATION:.1f}; unexplained "
-        "otherwise (no held-out check: a few numbers cannot be split into folds)")
+RULE = ("adequate: the base model's chi-square of the numbers has p >= alpha; "
+        + rule_text(held_out=None, explains="it brings the model to the numbers, p >= alpha")
+        + "; a pair when no single cause is named: the pair brings the model to the numbers, adds to "
+        "each member at alpha/(K-1), holds neither at its null value (95 % interval) and beats every "
+        f"other pair by {SEPARATION:.1f} (no held-out check: a few numbers cannot be split into folds)")
+
+
+def _explanation(names: list, fit: SummaryFit, base: SummaryFit, alpha: float) -> Explanation:
+    """Does the model with ``names`` explain the numbers (:func:`toywalk.sysid.naming.judge` for
+    summary numbers): its chi-square of the numbers has p at least ``alpha``. ``remaining`` holds
+    each number's residual in SDs, ``share`` the share of the base's chi-square beyond its degrees
+    of freedom that the model removes."""
+    short = [] if fit.reaches(alpha) else [f"the numbers missed: chi-square {fit.chi2:.1f} on {fit.dof} "
+                                           f"degrees of freedom, p = {fit.p_value:.2g}"]
+    excess = base.chi2 - base.dof
+    share = (base.chi2 - fit.chi2) / excess if excess > 0 else math.nan
+    return Explanation(list(names), not short, short, dict(fit.residuals), {}, {}, share)
 
 
 def _bounds(c: Candidate) -> tuple[float, float]:
@@ -617,12 +639,16 @@ def diagnose_summary(params: Params, data: SummaryData, *, free=(), effects=None
     for r in ranking:
         r["score"] = r.get("lr", math.nan)
     significant = [r for r in ranking if r.get("lr_p", 1.0) < alpha / K]
-    causes, ties = [], []
+    ties = []
     if significant:
         best = significant[0]
         ties = [r["effect"] for r in significant[1:] if best["chi2"] - r["chi2"] > -SEPARATION]
-        if best["reaches"] and not ties:
-            causes = [best["effect"]]
+
+    def explain(names: list) -> Explanation:
+        return _explanation(names, fits["+".join(names)], base, alpha)
+
+    decision = decide(significant, alpha / K, explain=explain)
+    causes = list(decision.causes)
     pairs = []
     fitted = [r for r in ranking if "chi2" in r]
     if not causes and len(fitted) >= 2:
@@ -665,6 +691,13 @@ def diagnose_summary(params: Params, data: SummaryData, *, free=(), effects=None
             if top["reaches"] and max(top["adds_p"]) < alpha / max(K - 1, 1) and all(top["away_from_null"]) \
                     and not rivals:
                 causes = list(top["pair"])
+    effective = None
+    if causes:
+        effective = explain(causes)
+        verdict = "discrepancy"
+    else:
+        verdict = decision.verdict
+        effective = decision.explanation
     named = "+".join(causes) if causes else None
     chosen = fits.get(named) if named else (fits.get(significant[0]["effect"]) if significant else None)
     gain = {}
@@ -678,8 +711,11 @@ def diagnose_summary(params: Params, data: SummaryData, *, free=(), effects=None
                 "stable": {"base": base.stable, "extended": chosen.stable},
                 "can_stand": {"base": base.can_stand, "extended": chosen.can_stand}}
     evidence = _evidence(base, base_line, ranking, significant, ties, pairs, causes, sens)
+    if verdict == "partly explained":
+        evidence += f"; {effective.sentence()}"
     return SummaryDiagnosis(
-        verdict="discrepancy", cause=named if named else "unexplained", causes=causes,
+        verdict=verdict, cause=named if named else "unexplained", causes=causes,
+        effective=effective.to_json() if effective is not None else None,
         ranking=ranking, gain=gain, evidence=evidence, data=data, base=base, fits=fits,
         pairs=pairs, sensitivity=_identifiability(sens, data), rule=RULE, alpha=alpha,
         seconds={**seconds, "total": time.perf_counter() - t_start})

@@ -38,23 +38,14 @@ from toywalk.model.parameters import Params
 from toywalk.model.trajectory import SIGNALS, TrajectoryTable
 
 from .discrepancy import (
-    ALPHA,
-    MAX_EXTENDED,
-    SEPARATION,
-    Candidate,
-    DiagnoseError,
+    EXPLAINS,
     FitPool,
-    Verdict,
     _further_evidence,
     _masked,
     _strides,
-    candidates,
-    complete_rows,
     held_out_fits,
     held_out_score,
-    lr_p_value,
     run_fits,
-    tied,
     weigh_ties,
 )
 from .fit import (
@@ -71,6 +62,24 @@ from .fit import (
     score_statistics,
 )
 from .measurement import observations
+from .naming import (
+    ALPHA,
+    MAX_EXTENDED,
+    Candidate,
+    DiagnoseError,
+    Explanation,
+    Verdict,
+    candidates,
+    complete_rows,
+    decide,
+    judge,
+    lr_p_value,
+    noise_reference,
+    parameter_note,
+    rule_text,
+    tied,
+    white_components,
+)
 from .residuals import ResidualReport, feature_misfit, missed_features, residual_report, scatter_noise
 
 __all__ = ["WALKS_RULE", "WalksDiagnosis", "WalksFit", "diagnose_walks", "fit_walks", "held_out_walks",
@@ -363,7 +372,7 @@ class WalksDiagnosis(Verdict):
                 "residuals_extended": None if self.residuals_extended is None else
                 [r.to_json() for r in self.residuals_extended],
                 "features": self.features, "features_extended": self.features_extended,
-                "next_walk": self.next_walk}
+                "next_walk": self.next_walk, "effective": self.effective}
 
 
 #: A joint fit's jump from the measured strikes to the model's is redone through the blends of
@@ -383,12 +392,11 @@ _JUMP_LIMIT = 2.0
 _BASE_MOVED = 1.0
 
 WALKS_RULE = ("adequate: no candidate's score test below alpha/K and no walk with a pattern repeated "
-              "every step (alpha over the walks and their signals); a cause is named when its "
-              "likelihood ratio (all walks together) is below alpha/K, it predicts held-out strides "
-              "better than the base (alternate strides of every walk in two folds, all walks fitted "
-              f"together on each), and it beats every other significant candidate by {SEPARATION:.1f} "
-              "in chi-square; unexplained otherwise, or when the extended model still leaves a "
-              "repeated pattern in a walk")
+              "every step (alpha over the walks and their signals); the likelihood ratios of all walks "
+              "together; "
+              + rule_text(held_out=("held-out strides (alternate strides of every walk in two folds, all "
+                                    "walks fitted together on each)"),
+                          explains=f"in every walk: {EXPLAINS}"))
 
 
 def held_out_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], fit: WalksFit,
@@ -407,7 +415,8 @@ def held_out_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], 
     Returns
     -------
     dict
-        ``chi2`` (held-out, all walks), ``by_walk`` (each walk's), ``success``, ``reason``.
+        ``chi2`` (held-out, all walks), ``by_walk`` (each walk's), ``scores`` (each walk's
+        :func:`toywalk.sysid.discrepancy.held_out_score`), ``success``, ``reason``.
     """
     tasks = _held_out_walk_tasks(tables, params, fit, **fit_options)
     return _held_out_walk_score(tables, fit, held_out_fits(tasks, workers, scheduler, _fit_walks_or_reason))
@@ -433,10 +442,13 @@ def _held_out_walk_score(tables, fit: WalksFit, fits: list) -> dict:
     failed = [f"fold {k}: {f if isinstance(f, str) else f.status}" for k, f in enumerate(fits)
               if isinstance(f, str) or not f.success]
     if failed:
-        return {"chi2": math.nan, "by_walk": [], "success": False, "reason": "; ".join(failed)}
-    by_walk = [held_out_score(table, [fits[0].walks[i], fits[1].walks[i]], walk.noise_sd)["chi2"]
-               for i, (table, walk) in enumerate(zip(tables, fit.walks, strict=True))]
-    return {"chi2": float(sum(by_walk)), "by_walk": by_walk, "success": True, "reason": ""}
+        return {"chi2": math.nan, "by_walk": [], "scores": [], "success": False,
+                "reason": "; ".join(failed)}
+    scores = [held_out_score(table, [fits[0].walks[i], fits[1].walks[i]], walk.noise_sd)
+              for i, (table, walk) in enumerate(zip(tables, fit.walks, strict=True))]
+    by_walk = [h["chi2"] for h in scores]
+    return {"chi2": float(sum(by_walk)), "by_walk": by_walk, "scores": scores, "success": True,
+            "reason": ""}
 
 
 def _scores(tables, base: WalksFit, free: list, cands: list) -> dict:
@@ -613,46 +625,65 @@ def _diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params],
     significant = [r for r in ranking if "lr" in r and r["lr_p"] < alpha / k]
     held: dict = {}
     further = None
+    named = patterns_named = features_named = None
+    decision = None
     if not significant and quiet:
         verdict, cause, evidence = "adequate", None, ("no candidate's score test is significant and no "
                                                       "walk's residuals repeat a pattern every step")
     elif not significant:
         verdict, cause, evidence = "discrepancy", "unexplained", "no fitted candidate is significant"
     else:
-        lead = significant[0]
-        gap = lead["lr"] - significant[1]["lr"] if len(significant) > 1 else math.inf
-        if gap >= SEPARATION:
-            say(f"held-out prediction by stride: base and {lead['effect']}")
-            named_fit = extended[lead["effect"]]
+        references = [noise_reference(o, w.noise_sd, w.noise_source)
+                      for o, w in zip(obs, base.walks, strict=True)]
+
+        def held_out_gain(row: dict) -> tuple[float, str]:
+            say(f"held-out prediction by stride: base and {row['effect']}")
             tasks = (_held_out_walk_tasks(tables, params, base, **fit_options)
-                     + _held_out_walk_tasks(tables, params, named_fit, **fit_options))
+                     + _held_out_walk_tasks(tables, params, extended[row["effect"]], **fit_options))
             fits = held_out_fits(tasks, pool, runner=_fit_walks_or_reason)
-            held = {"base": _held_out_walk_score(tables, base, fits[:2]),
-                    lead["effect"]: _held_out_walk_score(tables, named_fit, fits[2:])}
-            held_gain = held["base"]["chi2"] - held[lead["effect"]]["chi2"]
-            lead["held_out_gain"] = held_gain
-        if gap >= SEPARATION and held_gain > 0:
-            verdict, cause = "discrepancy", lead["effect"]
+            held.update({"base": _held_out_walk_score(tables, base, fits[:2]),
+                         row["effect"]: _held_out_walk_score(tables, extended[row["effect"]], fits[2:])})
+            reasons = "; ".join(h["reason"] for h in held.values() if h["reason"])
+            return held["base"]["chi2"] - held[row["effect"]]["chi2"], reasons
+
+        def explain(names: list) -> Explanation:
+            model = extended[names[0]]
+            reports, misfits = _patterns(obs, model, alpha), _features(obs, model)
+            labels = [f" (walk {i + 1})" for i in range(len(tables))]
+            walks = [(label, {"rms": m["rms"], "rms_base": b["rms"], "n": m["n_by_signal"]}, ref)
+                     for label, b, m, ref in zip(labels, held["base"]["scores"], held[names[0]]["scores"],
+                                                 references, strict=True)]
+            whiteness = {f"{c}{label}": p
+                         for label, ref, rep, w in zip(labels, references, reports, model.walks, strict=True)
+                         for c, p in white_components(ref, rep, w.noise_source).items()}
+            explained.update(residuals=reports, features=misfits)
+            return judge(names, held=walks, patterns=list(zip(labels, reports, strict=True)),
+                         features=list(zip(labels, misfits, strict=True)), whiteness=whiteness,
+                         alpha=alpha)
+
+        explained: dict = {}
+        decision = decide(significant, alpha / k, explain=explain, held_out=held_out_gain)
+        verdict, cause = decision.verdict, decision.cause
+        lead = decision.lead
+        if cause != "unexplained":
+            gap = lead["lr"] - significant[1]["lr"] if len(significant) > 1 else math.inf
             evidence = (f"{lead['effect']} explains the {len(tables)} walks together {gap:.1f} better in "
                         "chi-square than the next significant candidate" if math.isfinite(gap) else
                         f"{lead['effect']} is the only significant candidate")
-            evidence += f", and predicts their held-out strides {held_gain:.1f} better than the base"
-        elif gap >= SEPARATION:
-            verdict, cause = "discrepancy", "unexplained"
-            reasons = "; ".join(h["reason"] for h in held.values() if h["reason"])
-            evidence = (f"{lead['effect']} fits the walks best but its held-out prediction could not be "
-                        f"scored ({reasons})" if math.isnan(held_gain) else
-                        f"{lead['effect']} fits the walks best but does not predict their held-out "
-                        f"strides better than the base ({held_gain:.1f} in chi-square)")
+            evidence += (f", and predicts their held-out strides {lead['held_out_gain']:.1f} better than "
+                         "the base")
+            named = extended[cause]
+            note = parameter_note(lead, next(c for c in cands if c.name == cause))
+            evidence += f"; {note}" if note else ""
         else:
-            verdict, cause = "discrepancy", "unexplained"
-            evidence = (f"{lead['effect']} and {significant[1]['effect']} explain the walks within "
-                        f"{gap:.1f} in chi-square (the rule asks {SEPARATION:.1f})")
-            close = tied(ranking, alpha / k) if tie_design else []
-            if close:
-                further = weigh_ties(tables, base.walks, cands, close, pool=pool, alpha=alpha,
-                                     say=say, **fit_options)
-                evidence += _further_evidence(further)
+            evidence = decision.reason
+        if decision.explanation is not None:
+            patterns_named, features_named = explained["residuals"], explained["features"]
+        close = tied(ranking, alpha / k) if decision.tied and tie_design else []
+        if close:
+            further = weigh_ties(tables, base.walks, cands, close, pool=pool, alpha=alpha, say=say,
+                                 **fit_options)
+            evidence += _further_evidence(further)
     note = _pattern_note(patterns)
     if note:
         evidence += f"; the base model leaves a pattern repeated every step ({note})"
@@ -660,20 +691,12 @@ def _diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params],
     note = _feature_note(features)
     if note:
         evidence += f"; gait features the base misses ({note})"
-    named = extended.get(cause) if cause not in (None, "unexplained") else None
-    patterns_named = features_named = None
-    if named is not None:
-        patterns_named = _patterns(obs, named, alpha)
-        features_named = _features(obs, named)
-        note = _pattern_note(patterns_named)
-        if note:
-            evidence += (f"; {cause} improves the fit but leaves a pattern repeated every step "
-                         f"({note}): physics outside it remains")
-            cause, named = "unexplained", None
     if dropped:
         evidence += f"; the contact positions of walk(s) {dropped} were not used: they have no SDs"
+    shown = named if named is not None else (extended[decision.lead["effect"]] if decision and
+                                             decision.explanation is not None else None)
     gain = {"metric": "chi-square, all walks", "base": base_chi2,
-            "extended": named.chi2 if named is not None else None}
+            "extended": shown.chi2 if shown is not None else None}
     if held:
         name = next(n for n in held if n != "base")
         gain["held_out"] = {"metric": "held-out chi-square (two folds of alternate strides, all walks)",
@@ -681,6 +704,8 @@ def _diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params],
                             "by_walk": {"base": held["base"]["by_walk"], "extended": held[name]["by_walk"]},
                             "candidate": name}
     return WalksDiagnosis(verdict=verdict, cause=cause, causes=[cause] if named is not None else [],
+                          effective=(decision.explanation.to_json()
+                                     if decision and decision.explanation else None),
                           ranking=ranking, gain=gain, evidence=evidence, base=base, extended=extended,
                           rule=WALKS_RULE, alpha=alpha, seconds=time.perf_counter() - clock,
                           residuals=patterns, residuals_extended=patterns_named, features=features,

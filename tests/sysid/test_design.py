@@ -8,8 +8,8 @@ from numpy.testing import assert_allclose
 from toywalk.model.parameters import load_params
 from toywalk.model.trajectory import TrajectoryTable
 from toywalk.sysid.design import DesignError, WalkColumns, separation, walk_columns
-from toywalk.sysid.discrepancy import ALPHA, SEPARATION, Candidate, candidates, lr_p_value
 from toywalk.sysid.fit import fit
+from toywalk.sysid.naming import ALPHA, SEPARATION, Candidate, candidates, lr_p_value
 
 from ..conftest import DATA
 from .test_fit import _walk

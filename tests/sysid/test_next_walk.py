@@ -11,7 +11,8 @@ import pytest
 from toywalk.model.parameters import load_params
 from toywalk.model.trajectory import TrajectoryTable
 from toywalk.sysid.diagnosis_report import write_diagnosis, write_walks_diagnosis
-from toywalk.sysid.discrepancy import SEPARATION, diagnose, tied
+from toywalk.sysid.discrepancy import diagnose
+from toywalk.sysid.naming import SEPARATION, tied
 from toywalk.sysid.walks import diagnose_walks
 
 from ..conftest import DATA

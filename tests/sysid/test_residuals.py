@@ -136,7 +136,7 @@ def test_scatter_noise_measures_white_noise_and_sees_correlated_noise():
     over every sample in 4.1 % of white signals and in 83.5 % of signals with noise correlated
     over three samples (a running mean, same SD); here at most 10 of 80 white ones (3.6 SD above
     the expected 3.3) and at least 56 of 80 correlated ones (3.3 SD below 66.8)."""
-    from toywalk.sysid.discrepancy import NOISE_WHITENESS
+    from toywalk.sysid.naming import NOISE_WHITENESS
     from toywalk.sysid.residuals import scatter_noise
 
     sd = 0.002

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from toywalk.model import Walker, find_gait, load_params, solve_fixed_point
 from toywalk.model.optimize import gait_features
-from toywalk.sysid.discrepancy import SEPARATION
+from toywalk.sysid.naming import SEPARATION
 from toywalk.sysid.summary import (
     NOT_VISIBLE,
     SummaryData,

@@ -12,8 +12,8 @@ from toywalk.model.gait import GaitNotFound
 from toywalk.model.parameters import load_params, save_params
 from toywalk.model.trajectory import TrajectoryTable, write_trajectory
 from toywalk.sysid import walks as walks_module
-from toywalk.sysid.discrepancy import SEPARATION
 from toywalk.sysid.fit import FitError, fit
+from toywalk.sysid.naming import SEPARATION
 from toywalk.sysid.walks import diagnose_walks, fit_walks, without_unweighed_contacts
 
 from ..conftest import DATA

@@ -9,7 +9,7 @@ docs/tie_joint.csv."""
 
 import pytest
 from toywalk.model.parameters import load_params
-from toywalk.sysid.discrepancy import SEPARATION
+from toywalk.sysid.naming import SEPARATION
 from toywalk.sysid.walks import diagnose_walks
 
 from ..conftest import DATA
