@@ -55,7 +55,8 @@ _FOLD_PROBE = 1e-3
 
 
 class GaitNotFound(RuntimeError):
-    """No gait was found; the message says what was tried and why it failed."""
+    """No gait was found; the message says what was tried and why it failed (not "no gait found"
+    itself: whoever reports it says that, as ``toywalk gait`` does)."""
 
 
 class Stability:
@@ -524,7 +525,7 @@ def _find_gait(params: Params, z_guess: np.ndarray | None, planar: bool, steps_p
             f"no gait clears the ramp by {1e3 * min_clearance:.3g} mm over the whole swing; the gaits "
             f"found clear it by {which}"
         )
-    raise GaitNotFound(reasons[-1] if reasons else "no gait found")
+    raise GaitNotFound(reasons[-1] if reasons else "no start gave a gait")
 
 
 def _gaits(params: Params, z_guess: np.ndarray | None, planar: bool, steps_per_time_unit: int,
@@ -581,9 +582,10 @@ def _gaits(params: Params, z_guess: np.ndarray | None, planar: bool, steps_per_t
                 yield continue_gait(reduced, params, base.fixed_point, steps_per_time_unit)
             except GaitNotFound as err:
                 reasons.append(f"from the planar gait with step time {base.step_time:.4g} s: {err}")
+    # What was tried, without "no gait found": the callers' messages start with that.
     reasons.append(
-        f"no gait found (planar starts near the simplest walker's and a wider grid; "
-        f"last: {reasons[-1] if reasons else 'no planar gait from any start'})"
+        f"tried planar starts near the simplest walker's and a wider grid; last: "
+        f"{reasons[-1] if reasons else 'no planar gait from any start'}"
     )
 
 

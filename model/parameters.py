@@ -30,6 +30,7 @@ __all__ = [
     "ParameterError",
     "Params",
     "load_params",
+    "parameter_unit",
     "save_params",
     "view",
 ]
@@ -95,6 +96,29 @@ _UNITS = {
     "slope": "rad",
     "gravity": "m/s^2",
 }
+# The SI unit of each of the walker's own parameters, by name before any index (an effect's strength
+# has its effect's unit, Effect.unit).
+_SI_UNITS = {"leg_length": "m", "foot_radius": "m", "foot_lateral_radius": "m", "hip_width": "m",
+             "leg_mass": "kg", "axle_mass": "kg", "com_offset": "m", "inertia": "kg m^2",
+             "slope": "rad", "gravity": "m/s^2"}
+
+
+def parameter_unit(name: str) -> str:
+    """The SI unit of a parameter of :data:`PARAMETER_NAMES` (``"m"`` for ``com_offset[1]``,
+    ``"N m s/rad"`` for ``effects.hip_damping``; ``"1"`` for a ratio).
+
+    Raises
+    ------
+    ValueError
+        ``name`` is not one of :data:`PARAMETER_NAMES`.
+    """
+    if name not in PARAMETER_NAMES:
+        raise ValueError(f"unknown parameter {name!r} (known: {', '.join(PARAMETER_NAMES)})")
+    if name.startswith("effects."):
+        return EFFECTS[name.removeprefix("effects.")].unit
+    return _SI_UNITS[name.split("[", 1)[0]]
+
+
 # Relative round-off allowance for the inertia checks (eigenvalues, triangle inequality).
 _INERTIA_RTOL = 1e-12
 

@@ -24,7 +24,7 @@ from .engine import SCAN, engine
 from .parameters import N_PARAMS, Params
 
 __all__ = ["CLEARANCE_RESOLUTION", "STATE_NAMES", "Cycle", "Step", "StepFailure", "SwingClearance",
-           "Walker"]
+           "Walker", "describe_scuffs"]
 
 #: Public state order (model.md section 1).
 STATE_NAMES = (
@@ -120,6 +120,41 @@ class SwingClearance:
     def as_dict(self) -> dict:
         """JSON-ready copy (m, s, m/s)."""
         return dataclasses.asdict(self)
+
+
+def describe_scuffs(scuffs: int, steps: int, lowest: float | None = None,
+                    resolution: float = 0.0) -> str:
+    """The one sentence that says the swing foot scuffed the ramp (:attr:`Step.scuffs`), as every
+    command words it: a clause, in lower case and without a full stop, to print as it is or after a
+    colon. "" when there are no scuffs.
+
+    ``describe_scuffs(16, 16, -0.000536)``: "the swing foot scuffs the ramp before the legs pass,
+    16 times in 16 steps, down to 0.536 mm below it (the model lets it through)".
+
+    Parameters
+    ----------
+    scuffs : int
+        Downward crossings of the ramp by the swing foot before the legs pass, over ``steps``.
+    steps : int
+        The steps they were counted over (>= 1; a gait's period, or a walk's heel strikes).
+    lowest : float, optional
+        The swing foot's lowest height over the ramp in those steps (m;
+        :attr:`SwingClearance.minimum`): how far below the ramp it goes, said when it is below
+        ``-resolution``.
+    resolution : float
+        Heights within this of 0 are round-off (m; :data:`CLEARANCE_RESOLUTION` leg lengths).
+    """
+    if isinstance(scuffs, bool) or not isinstance(scuffs, (int, np.integer)) or scuffs < 0:
+        raise ValueError(f"scuffs must be a count >= 0, got {scuffs!r}")
+    if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
+        raise ValueError(f"steps must be a count >= 1, got {steps!r}")
+    if scuffs == 0:
+        return ""
+    times = {1: "once", 2: "twice"}.get(int(scuffs), f"{scuffs} times")
+    count = f"{times} a step" if steps == 1 else f"{times} in {steps} steps"
+    depth = (f", down to {-1e3 * lowest:.3g} mm below it"
+             if lowest is not None and math.isfinite(lowest) and lowest < -resolution else "")
+    return f"the swing foot scuffs the ramp before the legs pass, {count}{depth} (the model lets it through)"
 
 
 class StepFailure(RuntimeError):

@@ -64,17 +64,21 @@ def _find_gait(params):
 
 def _gait_report(params, gait) -> dict:
     from toywalk.model.statics import can_stand
+    from toywalk.model.walker import CLEARANCE_RESOLUTION
 
     report = gait.summary()
     standing = can_stand(params)
     report["can_stand"] = bool(standing.can_stand)
     report["standing"] = standing.reason
+    report["clearance_resolution"] = CLEARANCE_RESOLUTION * params.leg_length  # 0 to round-off
     report["units"] = {"step_time": "s", "stride_length": "m", "angles": "rad",
                        "rates": "rad/s", "clearance": "m"}
     return report
 
 
 def _print_gait(report: dict, out=None) -> None:
+    from toywalk.model.walker import describe_scuffs
+
     out = sys.stdout if out is None else out  # looked up per call, not bound at import
     fp = report["fixed_point"]
     print(f"status            {report['status']}{' (planar reduction)' if report['planar'] else ''}",
@@ -110,17 +114,28 @@ def _print_gait(report: dict, out=None) -> None:
               f"end of its branch, and a small change of slope or an effect can remove it", file=out)
     losses = ", ".join(f"{loss:.4g}" for loss in report["collision_loss"])
     print(f"collision loss    {losses} J per heel strike", file=out)
-    swing = report["swing_clearance"]
+    swing, tol = report["swing_clearance"], report["clearance_resolution"]
     where = "as the legs pass" if swing["where"] == "legs passing" else (
-        f"{abs(swing['ahead']):.3g} m {'ahead of' if swing['ahead'] > 0 else 'behind'} the stance foot")
-    print(f"swing clearance   {report['clearance']:.4g} m over the whole swing (lowest at "
-          f"{swing['phase']:.2f} of the step, {where}); {report['clearance_after_passing']:.4g} m "
-          f"after the legs pass; highest {swing['apex']:.4g} m", file=out)
-    contact = {"clears": "", "touches": "; the swing foot grazes the ramp (a clearance of 0 to "
-               "round-off)", "below": "; the swing foot goes below the ramp"}[report["swing_foot"]]
-    print(f"scuffs per step   {report['scuffs']} (swing-foot touches while the legs pass, which the "
-          f"model ignores){contact}", file=out)
+        f"{1e3 * abs(swing['ahead']):.3g} mm {'ahead of' if swing['ahead'] > 0 else 'behind'} the "
+        "stance foot")
+    print(f"swing clearance   the swing foot {_height(report['clearance'], tol)} at its lowest "
+          f"({100 * swing['phase']:.0f} % into the step, {where}); after the legs pass it "
+          f"{_height(report['clearance_after_passing'], tol)}; it rises {1e3 * swing['apex']:.3g} mm "
+          "at its highest", file=out)
+    scuffs = describe_scuffs(report["scuffs"], report["period_steps"], report["clearance"], tol)
+    print(f"scuffs            {scuffs or 'none before the legs pass'}", file=out)
     print(f"can stand         {report['can_stand']}: {report['standing']}", file=out)
+
+
+def _height(height: float, resolution: float) -> str:
+    """How the swing foot stands to the ramp at ``height`` (m), in mm: "clears the ramp by 3.48 mm",
+    "touches the ramp (0 mm to round-off)" within ``resolution`` (m) of 0, or "goes 0.536 mm below
+    the ramp"."""
+    if height > resolution:
+        return f"clears the ramp by {1e3 * height:.3g} mm"
+    if height >= -resolution:
+        return "touches the ramp (0 mm to round-off)"
+    return f"goes {-1e3 * height:.3g} mm below the ramp"
 
 
 def _with_effects(params, items):
@@ -221,6 +236,8 @@ def _plot_branch(branch, rows, path: Path) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import MaxNLocator
+    from toywalk.model.parameters import parameter_unit
 
     fig, axes = plt.subplots(2, 1, figsize=(6, 6), sharex=True)
     x = rows[:, 0]
@@ -233,7 +250,11 @@ def _plot_branch(branch, rows, path: Path) -> None:
     axes[0].legend(loc="best", fontsize=8)
     axes[1].plot(x, rows[:, 1], "-o", ms=3)
     axes[1].set_ylabel("step time (s)")
-    axes[1].set_xlabel(branch.name)
+    axes[1].set_xlabel(f"{branch.name} ({parameter_unit(branch.name)})")
+    for ax in axes:  # plain numbers: an offset ("1e-7+3.6951e-1") hides the values read off
+        ax.ticklabel_format(useOffset=False)
+    axes[1].xaxis.set_major_locator(MaxNLocator(nbins=6))  # room for their many digits
+    axes[1].tick_params(axis="x", labelrotation=30)
     for event in branch.events:
         for ax in axes:
             ax.axvline(event.value, color="r" if event.kind != "fold" else "b", lw=0.8, alpha=0.7)
@@ -301,6 +322,7 @@ def _simulate_to_file(params, steps: int, out: Path, noise: float, seed, source:
         "timestamps": "exact simulation times, uniform sampling",
         "status": traj.status, "message": traj.message,
         "scuffs": traj.scuffs, "min_clearance_m": traj.min_clearance,
+        "swing_clearance_m": traj.swing_clearance if math.isfinite(traj.swing_clearance) else None,
         "software": _version(),
     }
     events = [{"time": e.time, "foot": e.foot, "x": e.x, "y": e.y} for e in traj.events]
@@ -312,7 +334,23 @@ def _simulate_to_file(params, steps: int, out: Path, noise: float, seed, source:
     table = TrajectoryTable(traj.times, signals, traj.stance, events, metadata)
     write_trajectory(table, out)
     return {"status": traj.status, "message": traj.message, "samples": len(traj.times),
-            "heel_strikes": len(events)}
+            "heel_strikes": len(events), "scuffs": scuffs_in(table, params.leg_length)}
+
+
+def scuffs_in(table, leg_length: float) -> str:
+    """The scuffs of a simulated walk, said as every command says them
+    (:func:`toywalk.model.walker.describe_scuffs`), from its metadata (``scuffs``,
+    ``swing_clearance_m``; counted over its heel strikes); "" for none, or a walk that does not
+    record them (a tracked one)."""
+    from toywalk.model.walker import CLEARANCE_RESOLUTION, describe_scuffs
+
+    scuffs = table.metadata.get("scuffs")
+    if not isinstance(scuffs, int) or isinstance(scuffs, bool) or scuffs <= 0:
+        return ""
+    lowest = table.metadata.get("swing_clearance_m")
+    return describe_scuffs(scuffs, max(len(table.events), 1),
+                           lowest if isinstance(lowest, (int, float)) else None,
+                           CLEARANCE_RESOLUTION * leg_length)
 
 
 def cmd_simulate(args) -> int:
@@ -327,8 +365,9 @@ def cmd_simulate(args) -> int:
     out = output_path(args.out, (".csv",))
     info = _simulate_to_file(params, args.steps, out, args.noise, args.seed, str(args.params),
                              args.position_noise)
+    scuffs = f"; {info['scuffs']}" if info["scuffs"] else ""
     print(f"{info['status']}: {info['message']}; {info['samples']} samples, "
-          f"{info['heel_strikes']} heel strikes -> {out}")
+          f"{info['heel_strikes']} heel strikes{scuffs} -> {out}")
     return 0 if info["status"] == "completed" else 1
 
 
@@ -368,16 +407,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_effects)
     p = sub.add_parser("simulate", help="simulate steps from the gait and write a trajectory")
-    p.add_argument("--params", required=True)
-    p.add_argument("--steps", type=int, required=True)
+    p.add_argument("--params", required=True, metavar="P.toml", help="parameter TOML file (the walker)")
+    p.add_argument("--steps", type=int, required=True, metavar="N",
+                   help="steps to simulate from the gait's fixed point (heel strikes)")
     p.add_argument("--effect", action="append", metavar="NAME=VALUE",
                    help="set an effect's strength (repeatable; `toywalk effects` lists them)")
-    p.add_argument("--noise", type=float, default=0.0, help="measurement noise SD added to angles (rad)")
-    p.add_argument("--position-noise", type=float, default=0.0,
+    p.add_argument("--noise", type=float, default=0.0, metavar="SD",
+                   help="measurement noise SD added to the angles (rad; default 0: exact angles)")
+    p.add_argument("--position-noise", type=float, default=0.0, metavar="M",
                    help="measurement noise SD added to the heel strikes' contact positions (m; "
                         "default 0: exact positions)")
-    p.add_argument("--seed", type=int, default=None)
-    p.add_argument("--out", required=True, help="trajectory file NAME.csv")
+    p.add_argument("--seed", type=int, default=None, metavar="S",
+                   help="random seed of the noise (default: fresh entropy, a different draw each run)")
+    p.add_argument("--out", required=True, metavar="T.csv",
+                   help="trajectory file T.csv (T.events.csv and T.json beside it)")
     p.set_defaults(func=cmd_simulate)
     return parser
 

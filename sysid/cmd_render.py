@@ -61,7 +61,7 @@ def cmd_render(args) -> int:
     import numpy as np
     from toywalk.model.parameters import ParameterError, load_params
     from toywalk.model.trajectory import read_trajectory, trajectory_paths
-    from toywalk.sysid.cli import CommandError, output_path, refuse_overwrite
+    from toywalk.sysid.cli import CommandError, output_path, refuse_overwrite, scuffs_in
     from toywalk.tracking.camera import CameraError, load_camera
     from toywalk.tracking.markers import LayoutError, default_layout, load_layout
     from toywalk.tracking.render import RenderError, RenderOptions, default_filming, output_paths, render
@@ -141,6 +141,9 @@ def cmd_render(args) -> int:
     print(f"rendered {result.n_frames} frames{engine} ({camera.width}x{camera.height}, {options.fps:g} fps, "
           f"noise level {args.noise}, seed {seed}, {shot}) in {result.seconds:.1f} s -> {out}; truth in "
           f"{result.paths['truth'].name}")
+    scuffs = scuffs_in(table, params.leg_length)
+    if scuffs:  # the video shows the foot in the ramp there
+        print(f"note: {scuffs}", file=sys.stderr)
     if result.in_view is not None and np.any(result.in_view < 1):
         print(out_of_view_warning(result.frame_times, result.in_view), file=sys.stderr)
     return 0

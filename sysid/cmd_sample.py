@@ -12,16 +12,24 @@ def register(subparsers) -> None:
     p = subparsers.add_parser("sample", help="sample the posterior of a fit's free parameters (emcee)")
     p.add_argument("fit", metavar="F.json", help="fit file from `toywalk fit`")
     p.add_argument("trajectory", metavar="M.csv", help="the measured walk the fit used")
-    p.add_argument("--out", required=True, help="chain file CHAIN.h5 (resumed when it exists)")
-    p.add_argument("--walkers", type=int, default=32, help="walkers per ensemble")
-    p.add_argument("--steps", type=int, default=1000, help="steps per walker")
-    p.add_argument("--ensembles", type=int, default=3,
-                   help="independent ensembles (R-hat compares them)")
+    p.add_argument("--out", required=True, metavar="CHAIN.h5",
+                   help="chain file CHAIN.h5 (resumed when it exists; its summary CHAIN.json beside it)")
+    p.add_argument("--walkers", type=int, default=32, metavar="W",
+                   help="walkers per ensemble (default %(default)s)")
+    p.add_argument("--steps", type=int, default=1000, metavar="N",
+                   help="steps per walker (default %(default)s)")
+    p.add_argument("--ensembles", type=int, default=3, metavar="E",
+                   help="independent ensembles, which R-hat compares (default %(default)s)")
     where = p.add_mutually_exclusive_group()
-    where.add_argument("--workers", type=int, default=1, help="local processes")
-    where.add_argument("--scheduler", help="address of a Dask distributed scheduler")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--report", metavar="DIR", help="write diagnostics and figures into DIR")
+    where.add_argument("--workers", type=int, default=1, metavar="K",
+                       help="local processes (default %(default)s)")
+    where.add_argument("--scheduler", metavar="ADDR",
+                       help="address of a Dask distributed scheduler (default: none, local processes)")
+    p.add_argument("--seed", type=int, default=0, metavar="S",
+                   help="seed of the ensembles' starts and moves (default %(default)s)")
+    p.add_argument("--report", metavar="DIR",
+                   help="write diagnostics, figures and the posterior predictive checks into DIR "
+                        "(default: none)")
     p.set_defaults(func=cmd_sample)
 
 
@@ -29,8 +37,10 @@ def cmd_sample(args) -> int:
     import sys
 
     from toywalk.model.files import atomic_write_json, read_json_object
+    from toywalk.model.parameters import parameter_unit
     from toywalk.model.trajectory import read_trajectory
     from toywalk.sysid.cli import CommandError, output_path
+    from toywalk.sysid.diagnostics import misfit_notes, write_report
     from toywalk.sysid.fit import FitError
     from toywalk.sysid.measurement import MeasurementError
     from toywalk.sysid.sample import SampleError, sample
@@ -61,16 +71,23 @@ def cmd_sample(args) -> int:
         raise CommandError(f"cannot use {out} or the scheduler: {err}") from err
     data = summary.to_json()
     atomic_write_json(out.with_suffix(".json"), data)
+    fit_warnings = [w for w in report.get("warnings", []) if isinstance(w, str)]
+    misfit = misfit_notes(fit_warnings)
     if args.report:
-        from toywalk.sysid.diagnostics import write_report
         from toywalk.sysid.sample import posterior_from_fit
 
-        write_report(out, data, Path(args.report), posterior_from_fit(report, table)[0], table)
+        folder = Path(args.report)
+        write_report(out, data, folder, posterior_from_fit(report, table)[0], table, fit_warnings)
+        # the predictive checks are made as the report is written; its record says which failed
+        misfit = read_json_object(folder / "report.json", "report file", CommandError)["misfit"]
+    for note in misfit:  # before the estimates: they assume the model fits
+        print(f"warning: {note}", file=sys.stderr)
     for name in summary.names:
         q5, q50, q95 = data["quantiles_5_50_95"][name]
         rhat = data["rhat"][name] if data["rhat"] and data["rhat"][name] is not None else math.nan
         tau = data["autocorrelation_time"][name]
-        print(f"{name:<28s} median {q50:.6g}  90 % [{q5:.6g}, {q95:.6g}]  tau "
+        unit = parameter_unit(name)
+        print(f"{name:<28s} median {q50:.6g} {unit}  90 % [{q5:.6g}, {q95:.6g}] {unit}  tau "
               f"{'(never moved)' if tau is None else f'{tau:.1f}'}  R-hat {rhat:.3f}")
     if data["probability_stable"] is not None:
         print(f"P(stable gait) {data['probability_stable']:.3f}; no gait in "

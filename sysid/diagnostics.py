@@ -4,8 +4,9 @@ Trace plots (every walker of every ensemble), a corner plot of the kept draws (a
 thinned by half an autocorrelation time; ``corner``), the posterior of the gait's max |eigenvalue|
 with the stability line, the stride-to-stride return map estimated from the measured strides
 beside it (:mod:`toywalk.sysid.returnmap`: the model's stability against the data's, without the
-model), and ``report.md`` with the diagnostics table. Every file is written under
-a temporary name and renamed into place.
+model), and ``report.md`` with the diagnostics table, headed by the misfit the intervals ignore
+(:func:`misfit_notes`: the fit's warnings, the failing posterior predictive checks). Every file is
+written under a temporary name and renamed into place.
 """
 
 from __future__ import annotations
@@ -17,7 +18,8 @@ from pathlib import Path
 import numpy as np
 from toywalk.model.files import atomic_write_json, atomic_write_text
 
-__all__ = ["CHECKED_FEATURES", "PREDICTIVE_DRAWS", "predictive_checks", "write_report"]
+__all__ = ["CHECKED_FEATURES", "MISFIT_SDS", "PREDICTIVE_DRAWS", "misfit_notes", "predictive_checks",
+           "write_report"]
 
 
 def _chains(path: Path, ensembles: int):
@@ -46,6 +48,15 @@ PREDICTIVE_DRAWS = 40
 CHECKED_FEATURES = ("lean_range", "steer_range", "steer_mean", "stance_pitch_range", "swing_pitch_range")
 
 
+#: A posterior predictive check fails (:func:`misfit_notes`) when the measured statistic lies more
+#: than this many SDs of its replicates from their mean. Under the model a statistic of many samples
+#: is about normal: 4 SDs two-sided is 6e-5 a check, and 40 draws estimate the SD to about 11 %,
+#: so the line is at least 3.5 true SDs (5e-4 a check, 3e-3 over the six). p itself cannot serve:
+#: with 40 draws it is 0 (no replicate as extreme) for 5 % of a two-sided check's walks by chance
+#: (tests/sysid/test_predictive.py).
+MISFIT_SDS = 4.0
+
+
 def predictive_checks(post, draws: np.ndarray, rng, n_draws: int = PREDICTIVE_DRAWS) -> dict:
     """Posterior predictive checks (Gelman, Meng & Stern 1996, Statistica Sinica 6:733): for each of
     ``n_draws`` posterior draws, the model's angles at the observations (offsets and time offset at
@@ -63,8 +74,8 @@ def predictive_checks(post, draws: np.ndarray, rng, n_draws: int = PREDICTIVE_DR
     Returns
     -------
     dict
-        ``draws`` (used; a draw with no gait is skipped), ``low``, ``high`` (5 and 95 % of the
-        model's angles, per observation), and ``checks``: per statistic ``measured``,
+        ``draws`` (used; a draw with no gait is skipped), ``low``, ``middle``, ``high`` (5, 50 and
+        95 % of the model's angles, per observation), and ``checks``: per statistic ``measured``,
         ``replicated`` (list, one per draw; for chi2 the measured walk's discrepancy per draw),
         ``p`` (NaN for a feature no step has enough samples to measure).
     """
@@ -79,7 +90,7 @@ def predictive_checks(post, draws: np.ndarray, rng, n_draws: int = PREDICTIVE_DR
         curves.append(post.profile(gait, walker)[2][:len(obs.value)])
     curves = np.array(curves)
     if not len(curves):
-        return {"draws": 0, "low": None, "high": None, "checks": {}}
+        return {"draws": 0, "low": None, "middle": None, "high": None, "checks": {}}
     measured = {k: finite_mean(v) for k, v in step_features(obs, obs.value).items() if k in CHECKED_FEATURES}
     chi_obs, chi_rep, features = [], [], {k: [] for k in CHECKED_FEATURES}
     for curve in curves:
@@ -101,8 +112,47 @@ def predictive_checks(post, draws: np.ndarray, rng, n_draws: int = PREDICTIVE_DR
         above, below = np.mean(reps >= measured[k]), np.mean(reps <= measured[k])
         checks[k] = {"measured": measured[k], "replicated": reps.tolist(),
                      "p": float(min(1.0, 2.0 * min(above, below)))}
-    return {"draws": len(curves), "low": np.percentile(curves, 5, axis=0),
-            "high": np.percentile(curves, 95, axis=0), "checks": checks}
+    low, middle, high = np.percentile(curves, [5, 50, 95], axis=0)
+    return {"draws": len(curves), "low": low, "middle": middle, "high": high, "checks": checks}
+
+
+def _off_by(check: dict) -> float:
+    """How far the measured statistic lies from its replicates' mean, in their SDs (signed; NaN
+    when it is not measured or the replicates do not vary)."""
+    reps = np.asarray(check["replicated"], float)
+    measured = float(np.median(check["measured"]))  # chi-square: the measured walk's, per draw
+    spread = float(np.std(reps, ddof=1)) if len(reps) > 1 else math.nan
+    if not (math.isfinite(measured) and np.all(np.isfinite(reps)) and spread > 0):
+        return math.nan
+    return (measured - float(np.mean(reps))) / spread
+
+
+def misfit_notes(fit_warnings=(), predictive: dict | None = None) -> list[str]:
+    """What a posterior's reader must know before its intervals: one sentence each (lower case,
+    no full stop) for every warning of the fit it starts from, and one naming the posterior
+    predictive checks that fail (the measured statistic over :data:`MISFIT_SDS` SDs of its
+    replicates from their mean), each with how far and its p. [] when there is nothing to say.
+
+    ``predictive``: the result of :func:`predictive_checks` (None: not checked)."""
+    notes = [f"the fit it starts from warns: {w}" for w in fit_warnings]
+    failed = {}
+    for name, check in ((predictive or {}).get("checks") or {}).items():
+        off = _off_by(check)
+        if math.isfinite(off) and abs(off) > MISFIT_SDS:
+            failed["chi-square" if name == "chi2" else name] = (off, check["p"])
+    if failed:
+        same_p = len({f"{p:.3f}" for _, p in failed.values()}) == 1
+        items = [f"{name} {off:+.3g}" + ("" if same_p else f" (p = {p:.3f})")
+                 for name, (off, p) in failed.items()]
+        p_note = (f", p = {next(iter(failed.values()))[1]:.3f}{' each' if len(failed) > 1 else ''}"
+                  if same_p else "")
+        notes.append(
+            f"posterior predictive checks fail (the measured walk's statistic in SDs of its "
+            f"{predictive['draws']} replicates from their mean; a check fails beyond {MISFIT_SDS:g}): "
+            f"{', '.join(items)}{p_note}: the fitted model does not make walks like the measured one, "
+            "and the posterior's intervals assume it does; `toywalk diagnose` looks for what the "
+            "model lacks")
+    return notes
 
 
 def _checks_figure(result: dict, path: Path) -> None:
@@ -138,15 +188,20 @@ def _checks_figure(result: dict, path: Path) -> None:
     _save(fig, path)
 
 
-def write_report(chain: Path, summary: dict, folder: Path, post=None, table=None) -> list[Path]:
+def write_report(chain: Path, summary: dict, folder: Path, post=None, table=None,
+                 fit_warnings=()) -> list[Path]:
     """Write trace.png, corner.png, eigenvalues.png, report.md and report.json into ``folder``;
     with the log-posterior ``post``, also predictive.png (posterior predictive bands over the
-    measured signals); with the measured walk ``table``, also returnmap.png (the stride map's
-    multipliers from the measured strides against the posterior's)."""
+    measured signals, and the measured walk less the model); with the measured walk ``table``,
+    also returnmap.png (the stride map's multipliers from the measured strides against the
+    posterior's). The misfit (:func:`misfit_notes`: ``fit_warnings``, the warnings of the fit the
+    chain starts from, and the failing predictive checks) heads report.md, and is ``misfit`` in
+    report.json."""
     # Figures built on matplotlib's object API, never pyplot: the caller's backend (a notebook's
     # inline one) is left as it is.
     import corner
     from matplotlib.figure import Figure
+    from toywalk.model.parameters import parameter_unit
 
     folder.mkdir(parents=True, exist_ok=True)
     names = summary["names"]
@@ -176,25 +231,8 @@ def write_report(chain: Path, summary: dict, folder: Path, post=None, table=None
     written.append(folder / "corner.png")
 
     if post is not None:
-        from toywalk.model.trajectory import SIGNALS
-
         predictive = predictive_checks(post, draws, np.random.default_rng(0))
-        low, high = predictive["low"], predictive["high"]
-        obs = post.obs
-        fig = Figure(figsize=(8, 8))
-        axes = fig.subplots(len(SIGNALS), 1, sharex=True)
-        for s_i, (ax, name) in enumerate(zip(axes, SIGNALS, strict=True)):
-            sel = np.flatnonzero(obs.signal == s_i)
-            order = sel[np.argsort(obs.time[sel])]
-            ax.fill_between(obs.time[order], np.degrees(low[order]), np.degrees(high[order]),
-                            color="C0", alpha=0.35, lw=0, label="model, 5-95 % of the posterior")
-            ax.plot(obs.time[order], np.degrees(obs.value[order]), ".", color="k", ms=2,
-                    label="measured")
-            ax.set_ylabel(f"{name} (deg)", fontsize=8)
-        axes[0].legend(fontsize=7, loc="upper right")
-        axes[-1].set_xlabel("time (s)")
-        fig.tight_layout()
-        _save(fig, folder / "predictive.png")
+        _predictive_figure(post.obs, predictive, folder / "predictive.png")
         written.append(folder / "predictive.png")
         _checks_figure(predictive, folder / "checks.png")
         written.append(folder / "checks.png")
@@ -226,14 +264,15 @@ def write_report(chain: Path, summary: dict, folder: Path, post=None, table=None
              f"Acceptance fractions: {', '.join(f'{a:.2f}' for a in summary['acceptance_fraction'])}.",
              f"Proposals with no gait: {100 * summary['fraction_no_gait']:.2f} %; outside the prior: "
              f"{100 * summary['fraction_outside_prior']:.2f} %.", "",
-             "| parameter | median | 5 % | 95 % | SD | tau | R-hat | ESS (bulk) |",
-             "| --- | --- | --- | --- | --- | --- | --- | --- |"]
+             "| parameter | unit | median | 5 % | 95 % | SD | tau | R-hat | ESS (bulk) |",
+             "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     for n in names:
         q5, q50, q95 = summary["quantiles_5_50_95"][n]
         rhat = (summary["rhat"] or {}).get(n)
         ess = (summary["ess_bulk"] or {}).get(n)
         tau = summary["autocorrelation_time"][n]
-        lines.append(f"| {n} | {q50:.6g} | {q5:.6g} | {q95:.6g} | {summary['std'][n]:.3g} | "
+        lines.append(f"| {n} | {parameter_unit(n)} | {q50:.6g} | {q5:.6g} | {q95:.6g} | "
+                     f"{summary['std'][n]:.3g} | "
                      f"{'never moved' if tau is None else f'{tau:.1f}'} | "
                      f"{'-' if rhat is None else f'{rhat:.3f}'} | {'-' if ess is None else f'{ess:.0f}'} |")
     if summary.get("probability_stable") is not None:
@@ -264,9 +303,49 @@ def write_report(chain: Path, summary: dict, folder: Path, post=None, table=None
         summary["predictive_checks"] = {"draws": predictive["draws"],
                                         "p": {k: c["p"] for k, c in predictive["checks"].items()}}
     lines += returnmap_lines
+    # The misfit first: a reader must know it before reading the intervals.
+    misfit = misfit_notes(fit_warnings, predictive if post is not None else None)
+    summary["misfit"] = misfit
+    if misfit:
+        lines[1:1] = ["", "## Misfit", "", *(f"- {note[0].upper()}{note[1:]}." for note in misfit)]
     atomic_write_text(folder / "report.md", "\n".join(lines))
     atomic_write_json(folder / "report.json", summary)
     return written + [folder / "report.md", folder / "report.json"]
+
+
+def _predictive_figure(obs, predictive: dict, path: Path) -> None:
+    """predictive.png: per signal, the measured angles (grey dots, under) and the model's 5-95 %
+    band (orange, over them, its edges drawn so that a band narrower than a dot still shows);
+    beside it the measured walk less the band's middle, where a misfit far smaller than the swing
+    shows. The legend sits above the panels, off the data."""
+    from matplotlib.figure import Figure
+    from toywalk.model.trajectory import SIGNALS
+
+    low, middle, high = (np.degrees(predictive[k]) for k in ("low", "middle", "high"))
+    value = np.degrees(obs.value)
+    fig = Figure(figsize=(11, 8))
+    axes = fig.subplots(len(SIGNALS), 2, sharex=True, gridspec_kw={"width_ratios": [3, 2]})
+    for s_i, (row, name) in enumerate(zip(axes, SIGNALS, strict=True)):
+        sel = np.flatnonzero(obs.signal == s_i)
+        order = sel[np.argsort(obs.time[sel])]
+        t = obs.time[order]
+        for ax, shift in ((row[0], 0.0), (row[1], middle[order])):
+            ax.plot(t, value[order] - shift, ".", color="0.55", ms=2, zorder=1, label="measured")
+            ax.fill_between(t, low[order] - shift, high[order] - shift, color="C1", alpha=0.5, lw=0,
+                            zorder=2, label="model, 5-95 % of the posterior")
+            for edge in (low, high):
+                ax.plot(t, edge[order] - shift, color="C1", lw=0.8, zorder=3)
+            ax.set_ylabel(f"{name} (deg)", fontsize=8)
+            ax.tick_params(labelsize=7)
+        row[1].axhline(0.0, color="k", lw=0.5, zorder=0)
+    axes[0, 0].set_title("the walk", fontsize=9)
+    axes[0, 1].set_title("measured less the model (the band's middle)", fontsize=9)
+    for ax in axes[-1]:
+        ax.set_xlabel("time (s)", fontsize=8)
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    fig.legend(handles[:2], labels[:2], loc="upper center", ncol=2, fontsize=8, frameon=False)
+    fig.tight_layout(rect=(0, 0, 1, 0.96))
+    _save(fig, path)
 
 
 def _return_map(table, eig: np.ndarray, summary: dict, folder: Path) -> list[str]:

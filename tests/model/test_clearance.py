@@ -13,6 +13,7 @@ from toywalk.model import (
     GaitNotFound,
     Walker,
     can_stand,
+    describe_scuffs,
     find_gait,
     load_params,
     simulate,
@@ -275,5 +276,23 @@ def test_toywalk_gait_reports_it(capfd):
     assert_documented(1e3 * swing["ahead"], -13.9, 0.1, "ahead (mm)")
     assert main(["gait", "--params", str(params)]) == 0
     text = capfd.readouterr().out
-    assert "over the whole swing (lowest at 0.48 of the step, 0.0139 m behind the stance foot)" in text
-    assert "the swing foot goes below the ramp" in text
+    assert ("the swing foot goes 0.0638 mm below the ramp at its lowest (48 % into the step, 13.9 mm "
+            "behind the stance foot); after the legs pass it touches the ramp (0 mm to round-off)") in text
+    # the scuff it makes before the legs pass, in the words every command uses
+    assert f"scuffs            {describe_scuffs(1, 1, swing['minimum'])}\n" in text
+
+
+def test_scuffs_are_said_in_one_sentence():
+    """describe_scuffs: the count over the steps, the depth in mm where the foot goes below the
+    ramp beyond round-off, nothing for no scuffs, and counts that are not counts refused."""
+    assert describe_scuffs(0, 16, -0.000536) == ""
+    assert describe_scuffs(16, 16, -0.000536) == (
+        "the swing foot scuffs the ramp before the legs pass, 16 times in 16 steps, down to 0.536 mm "
+        "below it (the model lets it through)")
+    assert "once a step, down to 0.0638 mm below it" in describe_scuffs(1, 1, -6.38e-5)
+    assert "twice in 2 steps (the model" in describe_scuffs(2, 2)
+    # within the resolution of 0 (the seed's feet pass at -1.1e-14 m): no depth
+    assert "below it" not in describe_scuffs(1, 1, -1.1e-14, resolution=1e-9)
+    for scuffs, steps in ((-1, 1), (1, 0), (1.5, 2), (True, 1)):
+        with pytest.raises(ValueError, match="must be a count"):
+            describe_scuffs(scuffs, steps)

@@ -12,6 +12,7 @@ from toywalk.model.parameters import (
     ParameterError,
     Params,
     load_params,
+    parameter_unit,
     save_params,
 )
 
@@ -222,3 +223,24 @@ def test_derived_quantities(toy_params):
     tensor = toy_params.inertia_tensor()
     np.testing.assert_array_equal(tensor, tensor.T)
     assert tensor[0, 1] == toy_params.inertia[3] and tensor[1, 2] == toy_params.inertia[5]
+
+
+def test_every_parameter_has_its_unit(tmp_path, toy_params):
+    """parameter_unit agrees with the unit comments save_params writes (the walker's own
+    parameters) and with each effect's unit; an unknown name is refused."""
+    from toywalk.model.effects import EFFECTS
+
+    save_params(toy_params, tmp_path / "p.toml")
+    comments = {line.split(" = ")[0]: line.split("# ", 1)[1]
+                for line in (tmp_path / "p.toml").read_text().splitlines() if "  # " in line}
+    for name in PARAMETER_NAMES:
+        unit = parameter_unit(name)
+        if name.startswith("effects."):
+            assert unit == EFFECTS[name.removeprefix("effects.")].unit
+        else:  # "m, hip axis to foot bottom", "kg m^2 about the leg's COM: ...", "m: forward, ..."
+            comment = comments[name.split("[")[0]]
+            assert comment == unit or comment[len(unit)] in ",: ", (name, unit, comment)
+            assert comment.startswith(unit), (name, unit, comment)
+    assert parameter_unit("com_offset[1]") == "m" and parameter_unit("inertia[3]") == "kg m^2"
+    with pytest.raises(ValueError, match="unknown parameter 'lean_offset'"):
+        parameter_unit("lean_offset")

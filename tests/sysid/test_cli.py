@@ -64,6 +64,7 @@ def test_no_gait_is_a_clear_error(tmp_path):
     out = run("simulate", "--params", uphill, "--steps", "3", "--out", tmp_path / "t.csv")
     assert out.returncode == 2
     assert "no gait found" in out.stderr and len(out.stderr.strip().splitlines()) == 1
+    assert out.stderr.count("no gait found") == 1, out.stderr  # said once, not by both layers
     assert not (tmp_path / "t.csv").exists()
 
 
@@ -143,3 +144,83 @@ def test_fit_says_what_it_fits_to_a_terminal_only(monkeypatch, capsys):
     monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
     _progress()("the periodic model")
     assert capsys.readouterr().err == "toywalk fit: the periodic model ...\n"
+
+
+TOY_SIZED = DATA / "params" / "toy-sized.toml"
+CLEARING_TOY = DATA / "params" / "clearing-toy.toml"
+
+
+def test_simulate_and_gait_say_the_scuffs_in_one_wording(tmp_path):
+    """The toy-sized walker's swing foot goes 0.536 mm below the ramp before the legs pass, once a
+    step (docs: data/params/toy-sized.toml; `toywalk gait`): simulate's summary line says so in
+    the words gait uses, and its JSON counts them; the clearing toy, which clears by 3.48 mm
+    (docs/conventions.md), says nothing of scuffs."""
+    from toywalk.model import describe_scuffs
+
+    out = run("simulate", "--params", TOY_SIZED, "--steps", "2", "--out", tmp_path / "walk.csv")
+    assert out.returncode == 0, out.stderr
+    meta = json.loads((tmp_path / "walk.json").read_text())
+    assert meta["scuffs"] == 2 and meta["swing_clearance_m"] < 0
+    sentence = describe_scuffs(2, 2, meta["swing_clearance_m"])
+    assert sentence.startswith("the swing foot scuffs the ramp before the legs pass, twice in 2 steps")
+    assert out.stdout.startswith("completed: 2 steps; ") and f"heel strikes; {sentence} -> " in out.stdout
+    gait = run("gait", "--params", TOY_SIZED)
+    assert gait.returncode == 0, gait.stderr
+    assert ("scuffs            the swing foot scuffs the ramp before the legs pass, once a step, down "
+            "to 0.536 mm below it (the model lets it through)") in gait.stdout
+    assert ("swing clearance   the swing foot goes 0.536 mm below the ramp at its lowest (37 % into the "
+            "step, 10.5 mm behind the stance foot); after the legs pass it touches the ramp (0 mm to "
+            "round-off); it rises 22.7 mm at its highest") in gait.stdout
+    clear = run("simulate", "--params", CLEARING_TOY, "--steps", "2", "--out", tmp_path / "clear.csv")
+    assert clear.returncode == 0, clear.stderr
+    assert "scuff" not in clear.stdout and json.loads((tmp_path / "clear.json").read_text())["scuffs"] == 0
+
+
+def test_render_says_the_scuffs_of_its_trajectory(tmp_path):
+    """render of a walk with scuffs says them on stderr, in simulate's words (four frames)."""
+    said = run("simulate", "--params", TOY_SIZED, "--steps", "2", "--out", tmp_path / "walk.csv").stdout
+    sentence = said.split("heel strikes; ", 1)[1].split(" -> ", 1)[0]
+    out = run("render", tmp_path / "walk.csv", "--params", TOY_SIZED, "--duration", "0.05", "--size",
+              "320x180", "--seed", "1", "--out", tmp_path / "v.mp4")
+    assert out.returncode == 0, out.stderr
+    assert f"note: {sentence}\n" in out.stderr
+
+
+def test_help_says_what_each_option_is_and_its_default():
+    """simulate's --params, --steps and --seed have help texts; sample's options show their
+    defaults."""
+    simulate = run("simulate", "--help").stdout
+    for text in ("--params P.toml      parameter TOML file", "--steps N            steps to simulate",
+                 "--seed S             random seed of the noise"):
+        assert text in simulate, simulate
+    sample = " ".join(run("sample", "--help").stdout.split())  # argparse wraps the lines
+    for text in ("walkers per ensemble (default 32)", "steps per walker (default 1000)",
+                 "(default 3)", "local processes (default 1)", "(default 0)"):
+        assert text in sample, sample
+
+
+def test_continuation_plot_prints_plain_numbers(tmp_path, monkeypatch):
+    """A family over a narrow range (step times 0.3695125-0.3695132 s) is drawn with plain tick
+    labels, not an offset (\"1e-7+3.6951e-1\"), and the x axis names the parameter's unit."""
+    import types
+
+    import matplotlib.figure
+    import numpy as np
+    from toywalk.sysid.cli import _plot_branch
+
+    seen = {}
+
+    def savefig(fig, path, **kwargs):
+        fig.canvas.draw()
+        seen["offsets"] = [a.get_major_formatter().get_offset() for ax in fig.axes
+                           for a in (ax.xaxis, ax.yaxis)]
+        seen["xlabel"] = fig.axes[-1].get_xlabel()
+
+    monkeypatch.setattr(matplotlib.figure.Figure, "savefig", savefig)
+    slope = np.linspace(0.0785, 0.078535, 8)
+    # columns slope, step_time, stride_length, max_abs_eigenvalue, stable (Branch.table)
+    rows = np.c_[slope, 0.3695125 + 0.02 * (slope - slope[0]), np.full(8, 0.17), np.full(8, 5.75),
+                 np.zeros(8)]
+    branch = types.SimpleNamespace(name="slope", period=1, events=[], planar=False)
+    _plot_branch(branch, rows, tmp_path / "b.png")
+    assert seen["offsets"] == ["", "", "", ""] and seen["xlabel"] == "slope (rad)"
