@@ -105,25 +105,34 @@ def _feature_figure(d: Diagnosis, folder: Path) -> Path:
 
 
 def _candidate_figure(d: Diagnosis, folder: Path) -> Path:
-    from matplotlib.figure import Figure
+    return candidates_plot(d.ranking, d.alpha, "likelihood ratio (fitted)", folder / "candidates.png")
 
-    rows = d.ranking
-    fig = Figure(figsize=(8, 0.3 * len(rows) + 1.2))
-    ax = fig.subplots()
-    y = np.arange(len(rows))[::-1]
-    ax.barh(y + 0.2, [r["score_z"] ** 2 for r in rows], height=0.4, color="C7",
-            label="score statistic z^2 (screening)")
-    ax.barh(y - 0.2, [max(r.get("lr", 0.0), 0.0) for r in rows], height=0.4, color="C2",
-            label="likelihood ratio (fitted)")
-    k = len(rows)
+
+def candidates_plot(rows: list, alpha: float, fitted_label: str, path: Path) -> Path:
+    """Each candidate's score statistic z^2 (screening) and, where fitted, its likelihood ratio,
+    strongest at the top, against the rule's chi-square at alpha / K; the legend beside the axes."""
+    from matplotlib.figure import Figure
     from scipy import special
 
-    ax.axvline(special.chdtri(1, d.alpha / k), color="k", ls="--", lw=0.8,
-               label=f"alpha / K = {d.alpha:g} / {k}")
+    def strength(r):
+        return max(r.get("score_z", 0.0) ** 2, r.get("lr", 0.0) or 0.0)
+
+    rows = sorted(rows, key=strength, reverse=True)
+    k = len(rows)
+    fig = Figure(figsize=(10, 0.3 * k + 1.4))
+    ax = fig.subplots()
+    y = np.arange(k)[::-1]
+    ax.barh(y + 0.2, [r.get("score_z", 0.0) ** 2 for r in rows], height=0.4, color="C7",
+            label="score statistic z^2 (screening)")
+    ax.barh(y - 0.2, [max(r.get("lr", 0.0), 0.0) for r in rows], height=0.4, color="C2", label=fitted_label)
+    level = special.chdtri(1, alpha / k)
+    ax.axvline(level, color="k", ls="--", lw=0.8, label=f"significance: alpha / K = {alpha:g} / {k}")
     ax.set_xscale("symlog", linthresh=10)
+    ax.set_xlim(0, 1.5 * max([level] + [strength(r) for r in rows]))  # every bar ends inside
     ax.set_yticks(y, [r["effect"] for r in rows], fontsize=7)
-    ax.legend(fontsize=7)
-    return _finish(fig, folder / "candidates.png")
+    ax.set_xlabel("chi-square (likelihood ratio or score statistic against the base model)")
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # beside the bars, never on one
+    return _finish(fig, path)
 
 
 def _markdown(d: Diagnosis) -> str:
@@ -146,7 +155,8 @@ def _markdown(d: Diagnosis) -> str:
               "| feature | measured | model | z (base) | z (extended) |", "|---|---|---|---|---|"]
     for key, v in d.features.items():
         after = f"{d.features_extended[key]['z']:+.2f}" if d.features_extended else ""
-        lines.append(f"| {key} | {v['measured']:.4g} | {v['model']:.4g} | {v['z']:+.2f} | {after} |")
+        lines.append(f"| {key} | {_in_report_units(v['measured'], v['unit'])} | "
+                     f"{_in_report_units(v['model'], v['unit'])} | {v['z']:+.2f} | {after} |")
     lines += ["", "![features](features.png)", "", "## Candidates", "",
               "| candidate | score z | LR | LR p | held-out gain | estimate [95 %] | log BF |",
               "|---|---|---|---|---|---|---|"]
@@ -254,6 +264,13 @@ def numbers_figure(d, path: Path) -> Path:
     ax.set_xlabel("(model - measured) / SD, symmetric log scale; dotted: 2 SD")
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     return _finish(fig, Path(path))
+
+
+def _in_report_units(value: float, unit: str) -> str:
+    """A feature's value as report.md's tables give angles: degrees (the RMS tables' unit)."""
+    if unit == "rad":
+        return f"{math.degrees(value):.4g} deg"
+    return f"{value:.4g} {unit}"
 
 
 def _model_words(model: str) -> str:
@@ -395,23 +412,8 @@ def _walks_phase_figure(d, folder: Path) -> Path:
 
 
 def _walks_candidate_figure(d, folder: Path) -> Path:
-    from matplotlib.figure import Figure
-    from scipy import special
-
-    rows = d.ranking
-    fig = Figure(figsize=(8, 0.3 * len(rows) + 1.2))
-    ax = fig.subplots()
-    y = np.arange(len(rows))[::-1]
-    ax.barh(y + 0.2, [r.get("score_z", 0.0) ** 2 for r in rows], height=0.4, color="C7",
-            label="score statistic z^2 (screening)")
-    ax.barh(y - 0.2, [max(r.get("lr", 0.0), 0.0) for r in rows], height=0.4, color="C2",
-            label="likelihood ratio (fitted, all walks)")
-    ax.axvline(special.chdtri(1, d.alpha / len(rows)), color="k", ls="--", lw=0.8,
-               label=f"alpha / K = {d.alpha:g} / {len(rows)}")
-    ax.set_xscale("symlog", linthresh=10)
-    ax.set_yticks(y, [r["effect"] for r in rows], fontsize=7)
-    ax.legend(fontsize=7)
-    return _finish(fig, folder / "candidates.png")
+    return candidates_plot(d.ranking, d.alpha, "likelihood ratio (fitted, all walks)",
+                           folder / "candidates.png")
 
 
 def _walks_markdown(d) -> str:
