@@ -23,6 +23,12 @@ The MuJoCo model (Todorov, Erez & Tassa, IROS 2012, doi:10.1109/IROS.2012.638610
   (condim 3: the model's point contact rolls without slip and has no pivot friction), stiff
   (``solref`` time constant a few integration steps) and critically damped (plastic heel strikes).
 
+Those are the defaults, the build checked against the model (tests/model/test_mujoco.py). The
+contacts' time constant and damping ratio, the friction, the foot's semi-axes and its turn about
+the axle are options, so that a walk can carry physics the model lacks (softer, overdamped or
+bouncing heel strikes, slip, a foot whose curvature changes along its rim); tests/sysid/outside.py
+makes such walks.
+
 Heel strikes are read from the contacts: a foot's contact that begins after it has been off the
 ramp, ahead of the other foot's, is a heel strike; any other new contact of a foot is a scuff.
 
@@ -85,10 +91,61 @@ def _num(values) -> str:
     return " ".join(repr(float(v)) for v in values)
 
 
-def _foot_axes(params: Params) -> tuple[float, float, float]:
-    """Semi-axes (m) of the spheroid foot in the leg frame (b1, b2, b3)."""
-    r, rho = params.foot_radius, params.foot_lateral_radius
-    return r, math.sqrt(r * rho), r
+@dataclasses.dataclass(frozen=True)
+class _Foot:
+    """The ellipsoid foot: semi-axes (m) along its own axes, which are the leg's (b1, b2, b3)
+    turned about b2 by ``pitch`` (rad)."""
+
+    axes: tuple[float, float, float]
+    pitch: float = 0.0
+
+    @property
+    def shape(self) -> np.ndarray:
+        """``R diag(a^2) R'`` in the leg frame, R the turn about b2: the ellipsoid is the set
+        ``x' shape^-1 x = 1`` about its centre, shape (3, 3) (m^2)."""
+        c, s = math.cos(self.pitch), math.sin(self.pitch)
+        turn = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+        return turn @ np.diag(np.square(self.axes)) @ turn.T
+
+    @property
+    def depth(self) -> float:
+        """Height of the centre over the lowest point with the leg upright (m)."""
+        return math.sqrt(self.shape[2, 2])
+
+
+def _foot(params: Params, foot_axes=None, foot_pitch: float = 0.0) -> _Foot:
+    """The foot of ``build_mjcf``'s options (validated): the spheroid of the torus's rim
+    curvatures by default."""
+    if not math.isfinite(foot_pitch) or abs(foot_pitch) >= math.pi / 2:
+        raise ValueError(f"foot_pitch must be a finite angle within (-pi/2, pi/2) rad, got {foot_pitch!r}")
+    if foot_axes is None:
+        r, rho = params.foot_radius, params.foot_lateral_radius
+        return _Foot((r, math.sqrt(r * rho), r), float(foot_pitch))
+    try:
+        axes = tuple(float(v) for v in foot_axes)
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"foot_axes must be 3 semi-axes (m), got {foot_axes!r}") from err
+    if len(axes) != 3 or not all(math.isfinite(v) and v > 0.0 for v in axes):
+        raise ValueError(f"foot_axes must be 3 finite semi-axes > 0 (m), got {foot_axes!r}")
+    foot = _Foot(axes, float(foot_pitch))
+    if not foot.depth < params.leg_length:
+        raise ValueError(f"the foot's centre ({foot.depth} m above its lowest point) must lie below "
+                         f"the hip ({params.leg_length} m)")
+    return foot
+
+
+def _foot_centre(params: Params, foot: _Foot) -> float:
+    """The foot's centre along the leg from the hip point (m, negative: below): its lowest point
+    lies ``leg_length`` below the hip with the leg upright."""
+    return -(params.leg_length - foot.depth)
+
+
+def _contact_settings(contact_time: float, damping_ratio: float) -> None:
+    """Refuse contact settings that are not a time constant (s) and a damping ratio."""
+    if not (math.isfinite(contact_time) and contact_time > 0):
+        raise ValueError(f"contact_time must be a finite time > 0 (s), got {contact_time!r}")
+    if not (math.isfinite(damping_ratio) and damping_ratio > 0):
+        raise ValueError(f"damping_ratio must be a finite ratio > 0, got {damping_ratio!r}")
 
 
 def _leg_inertial(params: Params, mirror: bool, with_axle: bool) -> tuple[float, np.ndarray, np.ndarray]:
@@ -111,7 +168,9 @@ def _leg_inertial(params: Params, mirror: bool, with_axle: bool) -> tuple[float,
     return total, com, out
 
 
-def build_mjcf(params: Params, timestep: float = 1e-4, friction: float = 2.0) -> str:
+def build_mjcf(params: Params, timestep: float = 1e-4, friction: float = 2.0,
+               contact_time: float = _CONTACT_TIME, damping_ratio: float = 1.0,
+               foot_axes=None, foot_pitch: float = 0.0) -> str:
     """The MuJoCo model of ``params`` (MJCF text; see the module's docstring).
 
     Parameters
@@ -122,14 +181,29 @@ def build_mjcf(params: Params, timestep: float = 1e-4, friction: float = 2.0) ->
         Integration step (s).
     friction : float
         Sliding friction coefficient of the feet on the ramp (the model assumes no slip).
+    contact_time : float
+        The contacts' time constant (s; MuJoCo's ``solref``), at least four timesteps.
+    damping_ratio : float
+        The contacts' damping ratio (1: critically damped, a plastic heel strike; below 1 the
+        landing foot rebounds, which the model's collision law does not).
+    foot_axes : sequence of 3 floats, optional
+        The ellipsoid foot's semi-axes (m) along b1 (forward), b2 (the axle) and b3 (up the leg),
+        its bottom ``leg_length`` below the hip; default the spheroid of the torus's rim
+        curvatures. Other axes give a foot the model does not have: the fore-aft radius of
+        curvature at the bottom is ``a^2 / c`` and changes along the rim unless ``a = c``.
+    foot_pitch : float
+        The ellipsoid turned about the axle by this angle (rad), its lowest point with the leg
+        upright kept ``leg_length`` below the hip: with ``a != c`` a foot whose fore-aft radius of
+        curvature grows along the rim one way and shrinks the other.
     """
     if params.active_effects:
         raise ValueError(f"the MuJoCo walker has no effects; the parameter set has {params.active_effects}")
     if not params.foot_lateral_radius > 0.0:
         raise ValueError("the MuJoCo walker needs round feet (foot_lateral_radius > 0); "
                          f"got {params.foot_lateral_radius}")
-    a, b, c = _foot_axes(params)
-    centre = -(params.leg_length - params.foot_radius)
+    shape = _foot(params, foot_axes, foot_pitch)
+    a, b, c = shape.axes
+    centre = _foot_centre(params, shape)
     g = params.gravity
     grav = (g * math.sin(params.slope), 0.0, -g * math.cos(params.slope))
 
@@ -138,17 +212,18 @@ def build_mjcf(params: Params, timestep: float = 1e-4, friction: float = 2.0) ->
         full = (i[0, 0], i[1, 1], i[2, 2], i[0, 1], i[0, 2], i[1, 2])
         return (f'<inertial pos="{_num(com)}" mass="{_num([mass])}" fullinertia="{_num(full)}"/>')
 
-    foot = (f'type="ellipsoid" size="{a!r} {b!r} {c!r}" pos="0 0 {centre!r}" contype="1" '
+    turn = f' euler="0 {shape.pitch!r} 0"' if shape.pitch else ""
+    foot = (f'type="ellipsoid" size="{a!r} {b!r} {c!r}" pos="0 0 {centre!r}"{turn} contype="1" '
             f'conaffinity="0" condim="3" friction="{friction!r} 0 0" mass="0"')
-    if not 4 * timestep <= _CONTACT_TIME:
+    _contact_settings(contact_time, damping_ratio)
+    if not 4 * timestep <= contact_time:
         raise ValueError(f"timestep must be at most a quarter of the contact time constant "
-                         f"{_CONTACT_TIME} s, got {timestep}")
-    tc = _CONTACT_TIME
+                         f"{contact_time} s, got {timestep}")
     solver = " ".join(f'{key}="{value}"' for key, value in _SOLVER.items())
     return f"""<mujoco model="toywalk">
   <compiler angle="radian"/>
   <option timestep="{timestep!r}" gravity="{grav[0]!r} {grav[1]!r} {grav[2]!r}" {solver}/>
-  <default><geom solref="{tc!r} 1" solimp="{_num(_SOLIMP)}"/></default>
+  <default><geom solref="{contact_time!r} {damping_ratio!r}" solimp="{_num(_SOLIMP)}"/></default>
   <worldbody>
     <geom name="ramp" type="plane" size="0 0 1" contype="0" conaffinity="1" condim="3"
           friction="{friction!r} 0 0"/>
@@ -207,7 +282,8 @@ class MujocoWalk:
     settings : dict
         MuJoCo and its settings: ``engine`` (MuJoCo's version), ``timestep`` (s), ``friction``,
         ``contact_time_constant`` (s), ``contact_damping_ratio``, ``solimp``, ``integrator``,
-        ``cone``, ``impratio``, ``noslip_iterations``, ``condim``, ``sample_rate`` (Hz).
+        ``cone``, ``impratio``, ``noslip_iterations``, ``condim``, ``sample_rate`` (Hz), and
+        where the foot is not the default spheroid ``foot_axes`` (m) and ``foot_pitch`` (rad).
     """
 
     status: str
@@ -285,22 +361,26 @@ class MujocoWalk:
         return np.arctan2(d[:, 1], d[:, 0])
 
 
-def _lowest_offset(params: Params, rot: np.ndarray) -> np.ndarray:
-    """The spheroid foot's lowest point relative to its centre (m, slope frame) for a leg of
-    rotation ``rot``: ``-A e_z / sqrt(e_z' A e_z)``, ``A = R diag(a^2) R'`` (a the semi-axes)."""
-    axes = np.array(_foot_axes(params))
-    a_mat = rot @ np.diag(axes**2) @ rot.T
+def _lowest_offset(params: Params, rot: np.ndarray, foot: _Foot | None = None) -> np.ndarray:
+    """The ellipsoid foot's lowest point relative to its centre (m, slope frame) for a leg of
+    rotation ``rot``: ``-A e_z / sqrt(e_z' A e_z)``, ``A = R diag(a^2) R'`` (a the semi-axes, R
+    the foot's axes in the slope frame)."""
+    foot = _foot(params) if foot is None else foot
+    a_mat = rot @ foot.shape @ rot.T
     return -a_mat[:, 2] / math.sqrt(a_mat[2, 2])
 
 
-def initial_state(params: Params, z0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def initial_state(params: Params, z0: np.ndarray, foot_axes=None,
+                  foot_pitch: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """MuJoCo's (qpos, qvel) for the public state ``z0`` just after a heel strike, left leg in
-    stance, its foot's lowest point on the ramp at the origin (rolling: the contact at rest)."""
+    stance, its foot's lowest point on the ramp at the origin (rolling: the contact at rest);
+    ``foot_axes`` and ``foot_pitch`` as in :func:`build_mjcf`."""
+    foot = _foot(params, foot_axes, foot_pitch)
     phi, phid, psi, psid, th1, th1d, th2, th2d = map(float, z0)
     poses = leg_poses(params, phi, psi, th1, th2, "L", (0.0, 0.0))
     rot = poses.rotation["L"]
-    low = _lowest_offset(params, rot)
-    centre = rot @ np.array([0.0, 0.0, -(params.leg_length - params.foot_radius)])
+    low = _lowest_offset(params, rot, foot)
+    centre = rot @ np.array([0.0, 0.0, _foot_centre(params, foot)])
     hip = -low - centre  # the hip with the lowest point at the origin
     n = rotation(phi, psi, 0.0)[:, 1]
     ez = np.array([0.0, 0.0, 1.0])
@@ -323,7 +403,8 @@ def _quaternion(rot: np.ndarray) -> np.ndarray:
 
 def walk_in_mujoco(params: Params, z0: np.ndarray, steps: int = 20, timestep: float = 1e-4,
                    friction: float = 2.0, max_time: float | None = None,
-                   sample_rate: float = 1000.0) -> MujocoWalk:
+                   sample_rate: float = 1000.0, contact_time: float = _CONTACT_TIME,
+                   damping_ratio: float = 1.0, foot_axes=None, foot_pitch: float = 0.0) -> MujocoWalk:
     """Start the MuJoCo walker at the public state ``z0`` (just after a heel strike, left leg in
     stance) and run it until ``steps`` heel strikes after the start, a fall, or ``max_time``.
 
@@ -343,6 +424,9 @@ def walk_in_mujoco(params: Params, z0: np.ndarray, steps: int = 20, timestep: fl
     sample_rate : float
         Samples of the angles per second (Hz); ``1 / sample_rate`` must be a whole number of
         integration steps.
+    contact_time, damping_ratio, foot_axes, foot_pitch
+        The contacts' time constant (s) and damping ratio, the foot's semi-axes (m) and turn
+        (rad), as in :func:`build_mjcf`; the defaults are the build checked against the model.
 
     Returns
     -------
@@ -360,9 +444,11 @@ def walk_in_mujoco(params: Params, z0: np.ndarray, steps: int = 20, timestep: fl
     if every < 1 or abs(every * timestep * sample_rate - 1.0) > 1e-9:
         raise ValueError(f"1 / sample_rate must be a whole number of timesteps ({timestep} s), "
                          f"got sample_rate {sample_rate!r} Hz")
-    model = mujoco.MjModel.from_xml_string(build_mjcf(params, timestep, friction))
+    sole = _foot(params, foot_axes, foot_pitch)
+    model = mujoco.MjModel.from_xml_string(
+        build_mjcf(params, timestep, friction, contact_time, damping_ratio, sole.axes, sole.pitch))
     data = mujoco.MjData(model)
-    data.qpos[:], data.qvel[:] = initial_state(params, z0)
+    data.qpos[:], data.qvel[:] = initial_state(params, z0, sole.axes, sole.pitch)
     mujoco.mj_forward(model, data)
     foot_of = {model.geom("left_foot").id: "L", model.geom("right_foot").id: "R"}
     bodies = {"L": model.body("left").id, "R": model.body("right").id}
@@ -379,7 +465,8 @@ def walk_in_mujoco(params: Params, z0: np.ndarray, steps: int = 20, timestep: fl
         stance = landed[-1] if landed else "L"
         rot = {k: data.xmat[b].reshape(3, 3) for k, b in bodies.items()}
         steer, lean, pitch_left, pitch_right = angles_from_rotations(rot["L"], rot["R"])
-        low = _foot_position(data, model, bodies[stance], params) + _lowest_offset(params, rot[stance])
+        low = (_foot_position(data, model, bodies[stance], params, sole)
+               + _lowest_offset(params, rot[stance], sole))
         samples.append((data.time, lean, steer, pitch_left, pitch_right, low[0], low[1]))
         stances.append(stance)
 
@@ -399,7 +486,7 @@ def walk_in_mujoco(params: Params, z0: np.ndarray, steps: int = 20, timestep: fl
             if data.time - last_touch[foot] > _OFF_TIME:  # a new touch
                 pos = data.contact.pos[i]
                 other = "R" if foot == "L" else "L"
-                if pos[0] > _foot_position(data, model, bodies[other], params)[0]:
+                if pos[0] > _foot_position(data, model, bodies[other], params, sole)[0]:
                     strikes.append((data.time, float(pos[0]), float(pos[1])))
                     landed.append(foot)
                 else:
@@ -424,8 +511,10 @@ def walk_in_mujoco(params: Params, z0: np.ndarray, steps: int = 20, timestep: fl
     good = np.vstack([np.zeros((1, 3)), arr])[:n_alt]
     table = np.array(samples)
     settings = {"engine": f"MuJoCo {mujoco.__version__}", "timestep": timestep, "friction": friction,
-                "contact_time_constant": _CONTACT_TIME, "contact_damping_ratio": 1.0,
+                "contact_time_constant": contact_time, "contact_damping_ratio": damping_ratio,
                 "solimp": list(_SOLIMP), **_SOLVER, "condim": 3, "sample_rate": sample_rate}
+    if foot_axes is not None or foot_pitch:
+        settings["foot_axes"], settings["foot_pitch"] = list(sole.axes), sole.pitch
     return MujocoWalk(status=status, message=message, strikes=arr, feet=landed, scuffs=scuffs,
                       steps=n_alt - 1, step_times=np.diff(good[:, 0]), step_lengths=np.diff(good[:, 1]),
                       duration=float(data.time), times=table[:, 0], angles=table[:, 1:5],
@@ -433,10 +522,10 @@ def walk_in_mujoco(params: Params, z0: np.ndarray, steps: int = 20, timestep: fl
                       settings=settings)
 
 
-def _foot_position(data, model, body: int, params: Params) -> np.ndarray:
+def _foot_position(data, model, body: int, params: Params, foot: _Foot) -> np.ndarray:
     """The foot's centre (m, world frame) of the leg ``body``."""
     rot = data.xmat[body].reshape(3, 3)
-    return data.xpos[body] + rot @ np.array([0.0, 0.0, -(params.leg_length - params.foot_radius)])
+    return data.xpos[body] + rot @ np.array([0.0, 0.0, _foot_centre(params, foot)])
 
 
 def mujoco_trajectory(walk: MujocoWalk, params: Params, parameters: str | None = None) -> TrajectoryTable:
@@ -475,8 +564,11 @@ def mujoco_trajectory(walk: MujocoWalk, params: Params, parameters: str | None =
                    "start": dict(zip(STATE_NAMES, walk.start.tolist(), strict=True)),
                    "start_kind": "the model's state just after a left heel strike, left foot's "
                                  "lowest point at the origin",
-                   "model": "toywalk.model.mujoco_check: legs hinged on the axle, spheroid feet of "
-                            "the torus's rim curvatures, soft contacts of both feet with the ramp",
+                   "model": "toywalk.model.mujoco_check: legs hinged on the axle, "
+                            + ("ellipsoid feet of the semi-axes foot_axes, turned by foot_pitch"
+                               if "foot_axes" in walk.settings
+                               else "spheroid feet of the torus's rim curvatures")
+                            + ", soft contacts of both feet with the ramp",
                    **walk.settings},
         "units": {"time": "s", "angles": "rad", "contact": "m"},
         "noise_sd": 0.0,
