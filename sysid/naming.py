@@ -45,9 +45,8 @@ from .residuals import scatter_noise
 
 __all__ = ["ALPHA", "MAX_EXTENDED", "NOISE_GROUPS", "NOISE_WHITENESS", "PARAMETERS", "RMS_FACTOR",
            "SEPARATION", "Candidate", "Decision", "DiagnoseError", "Explanation", "Verdict", "candidates",
-           "complete_rows", "decide",
-           "feature_p", "judge", "lr_p_value", "noise_reference", "parameter_note", "rule_text", "tied",
-           "white_components"]
+           "complete_rows", "decide", "feature_p", "judge", "lr_p_value", "noise_reference",
+           "parameter_note", "percent", "rule_text", "tied", "white_components"]
 
 #: Family-wise false-alarm rate of the verdict.
 ALPHA = 0.01
@@ -264,11 +263,18 @@ class Explanation:
     def sentence(self) -> str:
         """One plain sentence on an effective description (``partly explained``)."""
         who = " and ".join(self.candidates)
-        share = (f"removes {100 * self.share:.0f} % of the base model's excess misfit"
-                 if math.isfinite(self.share) else "improves the fit")
+        one = len(self.candidates) == 1
+        share = (f"remove{'s' if one else ''} {percent(self.share)} of the base model's excess misfit"
+                 if math.isfinite(self.share) else f"improve{'s' if one else ''} the fit")
         left = "; ".join(self.shortfalls)
-        return (f"{who} {share} but does not explain the data ({left}): it may stand in for physics "
-                "the library lacks, and is an effective description, not a named cause")
+        return (f"{who} {share} but {'does' if one else 'do'} not explain the data ({left}): "
+                f"{'it' if one else 'they'} may stand in for physics the library lacks, an effective "
+                "description, not a named cause")
+
+
+def percent(share: float) -> str:
+    """A share in per cent, a small one with a decimal (0.1 %, not 0 %)."""
+    return f"{100 * share:.1f} %" if abs(share) < 0.1 else f"{100 * share:.0f} %"
 
 
 def judge(names: list, *, held: list | None, patterns: list, features: list,
@@ -437,7 +443,7 @@ def decide(rows: list[dict], level: float, *, explain: Callable[[list], Explanat
     runner = passing[1] if len(passing) > 1 else None
     if runner is not None and best["lr"] - runner["lr"] < SEPARATION:
         return Decision("discrepancy", "unexplained", [], best, None,
-                        f"{best['effect']} and {runner['effect']} explain the data about equally well "
+                        f"{best['effect']} and {runner['effect']} fit the data about equally well "
                         f"(chi-square {best['lr']:.1f} against {runner['lr']:.1f}; the rule asks "
                         f"{SEPARATION:.1f} apart)", tied=True)
     if held_out is not None:
