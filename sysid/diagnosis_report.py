@@ -22,7 +22,7 @@ from toywalk.model.files import atomic_write_json, atomic_write_text, strict_jso
 
 from .diagnostics import _save
 from .discrepancy import Diagnosis
-from .naming import SEPARATION
+from .naming import SEPARATION, percent
 
 __all__ = ["numbers_figure", "write_diagnosis", "write_summary_diagnosis", "write_walks_diagnosis"]
 
@@ -303,7 +303,7 @@ def explanation_line(e: dict) -> str:
     signal's held-out RMS in noise SDs against the rule's limit (``Verdict.effective``)."""
     parts = []
     if e.get("share_of_excess_misfit") is not None and math.isfinite(e["share_of_excess_misfit"]):
-        parts.append(f"{100 * e['share_of_excess_misfit']:.0f} % of the base model's excess misfit removed")
+        parts.append(f"{percent(e['share_of_excess_misfit'])} of the base model's excess misfit removed")
     if e["limit"]:
         parts.append("held-out RMS in noise SDs (limit): " + ", ".join(
             f"{k} {v:.2f} ({e['limit'][k]:.2f})" for k, v in e["remaining_in_noise_sd"].items()))
