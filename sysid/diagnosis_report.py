@@ -24,7 +24,8 @@ from .diagnostics import _save
 from .discrepancy import Diagnosis
 from .naming import SEPARATION, percent
 
-__all__ = ["numbers_figure", "write_diagnosis", "write_summary_diagnosis", "write_walks_diagnosis"]
+__all__ = ["candidates_plot", "explanation_line", "numbers_figure", "verdict_lines", "write_diagnosis",
+           "write_summary_diagnosis", "write_walks_diagnosis"]
 
 
 def write_diagnosis(diagnosis: Diagnosis, folder: Path, inputs: dict | None = None) -> list[Path]:
