@@ -42,10 +42,10 @@ from toywalk.model.optimize import GaitEvaluator, minimise_max_eigenvalue
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
-# A fixed point of stable-toy's gait (public state order), from tests/model/test_research_gaits.py.
+# A fixed point of stable-toy's gait (public state order), from tests/model/documented.py.
 Z_STABLE = [0.04661788900461893, -0.5141677402083711, -0.001876783030565294, 0.021718470946236697,
             -0.08694501480362028, 4.231073000769995, 0.08135087368205376, 2.3913296604495535]
-# The shipped walker's fixed point (data/params/clearing-toy.toml), from tests/model/test_clearance.py.
+# The shipped walker's fixed point (data/params/clearing-toy.toml), from tests/model/documented.py.
 Z_CLEARING = [0.07050947332653978, -0.46650017313326736, -0.010489277599679167, -0.4243942466228133,
               -0.18659626122490666, 3.228258310166639, 0.13667971250468633, 1.1314428232345919]
 # The design stage's result's fixed point (docs/clearance_best.toml), printed by that stage.

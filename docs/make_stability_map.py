@@ -22,7 +22,7 @@ from toywalk.model.optimize import GaitEvaluator
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
-# A fixed point of the file's gait (public state order), from tests/model/test_research_gaits.py.
+# A fixed point of the file's gait (public state order), from tests/model/documented.py.
 Z_STABLE = [0.04661788900461893, -0.5141677402083711, -0.001876783030565294, 0.021718470946236697,
             -0.08694501480362028, 4.231073000769995, 0.08135087368205376, 2.3913296604495535]
 

@@ -1,10 +1,12 @@
 """The package as a user installs it from a wheel, not from the source tree: every subpackage
-(the effects library was once left out) and the bundled data, found where the commands look."""
+(the effects library was once left out), the bundled data, found where the commands look, and
+the licence."""
 
 import glob
 import subprocess
 import sys
 import sysconfig
+import zipfile
 
 import pytest
 
@@ -19,6 +21,9 @@ def test_the_wheel_carries_the_code_and_the_data(tmp_path):
                             "-w", str(tmp_path / "dist")], capture_output=True, text=True, timeout=600)
     assert build.returncode == 0, build.stderr[-2000:]
     wheel, = glob.glob(str(tmp_path / "dist" / "toywalk-*.whl"))
+    with zipfile.ZipFile(wheel) as archive:
+        names = archive.namelist()
+    assert any(n.endswith(".dist-info/licenses/LICENSE") for n in names), "no LICENSE in the wheel"
     site = tmp_path / "site"
     install = subprocess.run([sys.executable, "-m", "pip", "install", "--no-deps", "-q", "--target",
                               str(site), wheel], capture_output=True, text=True, timeout=600)

@@ -1,12 +1,16 @@
 """The README's pipeline examples (issue 12): one per command, each a valid command line for
 today's parser, each naming bundled files that exist. The examples are run end to end by hand
 (their outputs are not checked here: several take minutes); this catches an option renamed or a
-bundled file moved without the README following."""
+bundled file moved without the README following. And its Python example, run as written: it
+prints what its comments say."""
 
 import glob
 import re
 import shlex
+import subprocess
+import sys
 
+import pytest
 from toywalk.sysid.cli import build_parser
 
 from .conftest import DATA
@@ -35,3 +39,23 @@ def test_every_example_parses_and_its_bundled_inputs_exist():
         for word in argv[1:]:
             if word.startswith("data/"):
                 assert glob.glob(str(ROOT / word)), f"{word} in: {' '.join(argv)}"
+
+
+def _python_example() -> str:
+    text = (ROOT / "README.md").read_text()
+    start = text.index("## In Python")
+    return re.search(r"```python\n(.*?)```", text[start:], re.DOTALL).group(1)
+
+
+@pytest.mark.slow
+def test_the_python_example_prints_what_it_says():
+    """Run from the repository's root, as the README shows it: each ``print(...)  # OUTPUT`` line
+    prints OUTPUT, in order (a whole analysis: about 10 s of one core)."""
+    code = _python_example()
+    expected = [line.split("  # ", 1)[1] for line in code.splitlines()
+                if line.startswith("print(") and "  # " in line]
+    assert len(expected) == 2, code
+    run = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True,
+                         timeout=600)
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert run.stdout.splitlines() == expected

@@ -24,12 +24,7 @@ from toywalk.model.continuation import continue_branch
 from toywalk.model.optimize import clearance_constraint, gait_features, minimise_max_eigenvalue
 
 from ..conftest import DATA
-from .test_research_gaits import Z_STABLE, assert_documented
-
-# The fixed point of data/params/clearing-toy.toml's gait (public state order), from
-# docs/make_clearance_design.py's result re-solved at the file's rounded parameters.
-Z_CLEARING = [0.07050947332653978, -0.46650017313326736, -0.010489277599679167, -0.4243942466228133,
-              -0.18659626122490666, 3.228258310166639, 0.13667971250468633, 1.1314428232345919]
+from .documented import Z_CLEARING, Z_STABLE, assert_documented
 
 
 @pytest.fixture(scope="module")

@@ -10,7 +10,7 @@ from toywalk.model.parameters import ParameterError, load_params
 from toywalk.model.walker import Walker
 
 from ..conftest import DATA
-from .test_research_gaits import assert_documented
+from .documented import assert_documented
 
 GARCIA_BOUNDARY = 0.0150884  # anchors.md: an eigenvalue through -1 (Garcia et al. 1998, recomputed)
 # A branch point is a gait when one step from it returns to it: |P(z) - z| (rates scaled by

@@ -16,7 +16,8 @@ from toywalk.model.simulate import simulate
 from toywalk.model.walker import StepFailure, Walker, _admissible
 
 from ..conftest import DATA
-from .test_equations import FEET, GENERAL, _free_system, _u_plus_old_labels
+from .collision_reference import free_system, u_plus_old_labels
+from .walkers import FEET, GENERAL
 
 SYMMETRIC = [name for name, e in EFFECTS.items() if not e.breaks_symmetry]
 EZ = np.array([0.0, 0.0, 1.0])
@@ -230,9 +231,9 @@ def test_simulation_reports_energy_budget(toy):
 def _reference_collision(params, x, share, arrest):
     """Post-collision speeds, energy change and normal impulses from the free walker (impulses
     at D, a normal impulse lambda_C = share * Lambda at C, a couple about e_z on the landing leg
-    for the arrested law), built from NumPy kinematics (tests/model/test_equations.py)."""
+    for the arrested law), built from NumPy kinematics (tests/model/collision_reference.py)."""
     q, rates = x[:4], x[4:8]
-    m_free, a_d, a_c = _free_system(params, q)
+    m_free, a_d, a_c = free_system(params, q)
     u_minus = np.zeros(7)
     u_minus[3:] = rates
     u_minus[:3] = -(a_c[:, 3:] @ rates)
@@ -299,7 +300,7 @@ def test_collision_effects_match_free_walker_impulses(feet):
                                           "effects.impact_spin_arrest": arrest}))
         for x in _random_states(rng, 4):
             expected, d_k, impulses, before = _reference_collision(params, x, share, arrest)
-            got = _u_plus_old_labels(walker, walker.eng.k["collision"](x, walker.p)[0].ravel())
+            got = u_plus_old_labels(walker, walker.eng.k["collision"](x, walker.p)[0].ravel())
             rate = np.max(np.abs(x[4:8]))
             # A 4x4 (or 5x5) solve against a 10x10 (11x11) one: round-off level.
             assert_allclose(got, expected, atol=1e-9 * rate, err_msg=f"{share}, {arrest}")

@@ -8,17 +8,9 @@ from toywalk.model.parameters import Params
 from toywalk.model.walker import Walker
 
 from . import roundfoot_reference as ref
+from .collision_reference import free_system, u_plus_old_labels
+from .walkers import FEET, GENERAL
 
-# Torus (spool-rim) feet, hip width, lateral and fore-aft mass offsets and all products of inertia
-# non-zero: the most general case of model.md section 2.
-GENERAL = dict(leg_length=0.15, hip_width=0.02, leg_mass=0.06, axle_mass=0.01,
-               com_offset=(-0.005, 0.1, -0.11), inertia=(2e-4, 3e-4, 2e-4, 1e-5, 2e-5, 1e-5),
-               slope=0.0785, gravity=9.81)
-FEET = {
-    "point": dict(foot_radius=0.0, foot_lateral_radius=0.0),
-    "sphere": dict(foot_radius=0.03, foot_lateral_radius=0.03),
-    "torus": dict(foot_radius=0.03, foot_lateral_radius=0.005),
-}
 X0 = np.array([0.1, 0.05, -0.1, 0.15, 0.3, -0.2, 0.5, 0.3, 0.0, 0.0])
 
 
@@ -101,11 +93,6 @@ def _pre_impact_states(rng, n):
         yield x
 
 
-def _u_plus_old_labels(walker, x_plus):
-    """Invert relabel and mirror: the post-collision speeds in the old labels (3D)."""
-    return np.array([-x_plus[4], -x_plus[5], x_plus[7], x_plus[6]])
-
-
 def test_collision_conserves_momenta_and_dissipates(walker):
     """Both jump conditions (seed eqs. 3-4) hold to round-off; kinetic energy never increases."""
     rng = np.random.default_rng(1)
@@ -113,7 +100,7 @@ def test_collision_conserves_momenta_and_dissipates(walker):
     scale = walker.params.total_mass * walker.params.leg_length**2
     for x in _pre_impact_states(rng, 20):
         x_plus = walker.eng.k["collision"](x, p)[0].ravel().copy()
-        u_plus = _u_plus_old_labels(walker, x_plus)
+        u_plus = u_plus_old_labels(walker, x_plus)
         residual = walker.eng.k["momenta"](x, u_plus, p)[0].ravel()
         rate = np.max(np.abs(x[4:8]))
         # Round-off of a 4x4 solve with entries ~ m l^2 and rates ~ 1 rad/s.
@@ -170,52 +157,6 @@ def test_round_foot_collision_matches_hand_derivation():
 
 
 # ------------------------------------------------------------------ independent 3D collision check
-def _free_system(params, q):
-    """Velocities of the walker's masses as linear maps of the free generalised speeds
-    u = (v_H1 (3), phi', psi', theta_1', theta_2') (the hip point free, nothing on the ground),
-    built in NumPy from model.kinematics (not from the CasADi model)."""
-    from toywalk.model.kinematics import leg_poses
-
-    phi, psi, th1, th2 = q
-    poses = leg_poses(params, phi, psi, th1, th2, "L", (0.0, 0.0))
-    r1, r2 = poses.rotation["L"], poses.rotation["R"]
-    n = r1[:, 1]
-    ez, ex_rot = np.array([0.0, 0.0, 1.0]), np.array([np.cos(phi), np.sin(phi), 0.0])
-    w_rates = np.zeros((2, 3, 4))  # omega_i = W_i @ (phi', psi', th1', th2')
-    for i in range(2):
-        w_rates[i][:, 0], w_rates[i][:, 1] = ez, ex_rot
-        w_rates[i][:, 2 + i] = n
-    d = np.array(params.com_offset)
-    d_right = d * [1, -1, 1]
-    h1, h2 = poses.hip["L"], poses.hip["R"]
-    g1, g2 = h1 + r1 @ d, h2 + r2 @ d_right
-    axle = h1 - 0.5 * params.hip_width * n
-
-    def point_jac(point, leg):  # v_P = v_H1 + omega_leg x (P - H1) (H2 and the axle lie on n)
-        jac = np.zeros((3, 7))
-        jac[:, :3] = np.eye(3)
-        for k in range(4):
-            jac[:, 3 + k] = np.cross(w_rates[leg][:, k], point - h1)
-        return jac
-
-    inertia = params.inertia_tensor()
-    mirror = np.diag([1.0, -1.0, 1.0])
-    i_world = [r1 @ inertia @ r1.T, r2 @ (mirror @ inertia @ mirror) @ r2.T]
-    m_free = np.zeros((7, 7))
-    for point, leg, mass in ((g1, 0, params.leg_mass), (g2, 1, params.leg_mass), (axle, 0, params.axle_mass)):
-        jac = point_jac(point, leg)
-        m_free += mass * jac.T @ jac
-    for leg in range(2):
-        wj = np.zeros((3, 7))
-        wj[:, 3:] = w_rates[leg]
-        m_free += wj.T @ i_world[leg] @ wj
-    # Both feet share the offset C - O (model.md section 2), and C is the origin: D = O2 - O1.
-    c2 = poses.foot_centre["R"] - poses.foot_centre["L"]
-    contact_jac = point_jac(c2, 1)  # velocity of leg 2's material point at D
-    c1_jac = point_jac(np.zeros(3), 0)  # leg 1's material point at C (rolling before impact)
-    return m_free, contact_jac, c1_jac
-
-
 @pytest.mark.parametrize("feet", sorted(FEET))
 def test_3d_collision_matches_impulse_projection(feet):
     """The seed's angular-momentum jump conditions equal a plastic impulse at D on the free
@@ -225,7 +166,7 @@ def test_3d_collision_matches_impulse_projection(feet):
     rng = np.random.default_rng(4)
     for x in _pre_impact_states(rng, 5):
         q, rates = x[:4], x[4:8]
-        m_free, a_d, a_c = _free_system(params, q)
+        m_free, a_d, a_c = free_system(params, q)
         # Pre-impact free speeds: the hip velocity follows from rolling about C (v_C = 0).
         u_minus = np.zeros(7)
         u_minus[3:] = rates
@@ -234,6 +175,6 @@ def test_3d_collision_matches_impulse_projection(feet):
         sol = np.linalg.solve(kkt, np.r_[m_free @ u_minus, np.zeros(3)])
         expected = sol[3:7]
         x_plus = walker.eng.k["collision"](x, walker.p)[0].ravel()
-        got = _u_plus_old_labels(walker, x_plus)
+        got = u_plus_old_labels(walker, x_plus)
         # Two exact formulations in double precision (4x4 vs 10x10 solves): round-off level.
         assert_allclose(got, expected, rtol=1e-9, atol=1e-9 * np.max(np.abs(rates)))

@@ -19,8 +19,7 @@ from toywalk.model.trajectory import SIGNALS, read_trajectory, write_trajectory
 from toywalk.sysid.measurement import observations
 
 from ..conftest import DATA
-from .test_clearance import Z_CLEARING
-from .test_research_gaits import Z_STABLE
+from .documented import Z_CLEARING, Z_STABLE
 
 CLEARING = DATA / "params" / "clearing-toy.toml"
 STEPS = 30  # issue 13's done criterion: at least 30 steps

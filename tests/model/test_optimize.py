@@ -8,7 +8,7 @@ from toywalk.model import Walker, load_params, solve_fixed_point
 from toywalk.model.optimize import fit_gait_targets, gait_features, minimise_max_eigenvalue
 
 from ..conftest import DATA
-from .test_research_gaits import Z_STABLE, assert_documented
+from .documented import Z_STABLE, assert_documented
 
 
 @pytest.fixture(scope="module")

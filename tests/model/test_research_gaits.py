@@ -3,9 +3,9 @@ its heading eigenvalue against slope, a stable gait of a walker that cannot stan
 fit's gait; checked by their eigenvalues, by forward simulation, by a finer integration grid and by
 the numbers the documents quote.
 
-A documented number is quoted to some digits; ``assert_documented`` checks that the model, run as
-the documents say (default integration grid), rounds to it: the tolerance is half a unit of the
-last quoted digit.
+A documented number is quoted to some digits; ``assert_documented`` (tests/model/documented.py)
+checks that the model, run as the documents say (default integration grid), rounds to it: the
+tolerance is half a unit of the last quoted digit.
 """
 
 import math
@@ -16,13 +16,12 @@ from toywalk.model import Walker, can_stand, find_gait, load_params, solve_fixed
 from toywalk.model.optimize import heading_eigenvalue
 
 from ..conftest import DATA
+from .documented import Z_STABLE, assert_documented
 
-# Fixed points (public state order) found when the files were made (docs/gaits.md); Newton polishes
-# them, so they only need to be near the gait.
+# The seed's fixed point (public state order) found when its file was made (docs/gaits.md); Newton
+# polishes it, so it only needs to be near the gait. The stable toy's is in tests/model/documented.py.
 Z_SEED = [0.0068691677560342185, -0.05803631223443323, 4.2840513469809e-09, 0.008068837555385303,
           -0.008168480883295554, 1.2064281809023907, 0.008168480883311213, 1.0683654791509936]
-Z_STABLE = [0.04661788900461893, -0.5141677402083711, -0.001876783030565294, 0.021718470946236697,
-            -0.08694501480362028, 4.231073000769995, 0.08135087368205376, 2.3913296604495535]
 # The Tinkertoy fit's gait, reached by docs/make_tinkertoy.py's route (continuation from the
 # toy-like start walker). It lies 1e-9 rad of slope from a fold (docs/effects_study.md), next to a
 # partner gait, which test_tinkertoy_fit_gait tells apart.
@@ -35,11 +34,6 @@ TINKERTOY_FIXED_POINT_DOC = [0.065888, 0.281833, 0.00483223, 0.0214797, -0.08849
 # shared/reference/anchors.md; docs/make_tinkertoy.py): value, scale.
 TOY_MEASURED = {"stride_time": (0.47, 0.01), "stride_length": (0.013, 0.001),
                 "lean_amplitude": (math.radians(4.0), math.radians(0.5))}
-
-
-def assert_documented(value, documented, unit, what):
-    """``value`` rounds to ``documented``, a number quoted to a multiple of ``unit``."""
-    assert abs(value - documented) <= 0.5 * unit * (1 + 1e-9), f"{what}: {value!r} vs {documented}"
 
 
 def _phi_eigenvalues(gait):

@@ -21,8 +21,8 @@ from toywalk.sysid.likelihood import LogPosterior
 from toywalk.sysid.sample import diagnose_chains
 
 from ..tracking.synthetic import TOYWALK
-from .conftest import assert_refused, snapshot, toywalk, write
-from .test_inputs import BINARY, CAMERA, TRAJECTORIES, bad_trajectory
+from .bad_trajectories import BINARY, TRAJECTORIES, bad_trajectory
+from .conftest import CAMERA, assert_refused, snapshot, toywalk, write
 
 #: A short run: enough walkers for one free parameter (at least two per parameter), a few steps.
 RUN = ("--walkers", "4", "--steps", "6", "--ensembles", "1", "--seed", "2")

@@ -1,20 +1,14 @@
 """The `toywalk` command line: outputs, and bad input giving one clear line and no output file."""
 
 import json
-import subprocess
-import sys
 
 import pytest
 
 from ..conftest import DATA
+from .command import run
 
 SIMPLEST = DATA / "params" / "simplest-walker.toml"
 COMPASS = DATA / "params" / "compass-3d.toml"
-
-
-def run(*args):
-    return subprocess.run([sys.executable, "-m", "toywalk.sysid.cli", *map(str, args)],
-                          capture_output=True, text=True, timeout=600)
 
 
 def test_gait_json_has_the_documented_keys():

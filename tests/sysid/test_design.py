@@ -12,7 +12,7 @@ from toywalk.sysid.fit import fit
 from toywalk.sysid.naming import ALPHA, SEPARATION, Candidate, candidates, lr_p_value
 
 from ..conftest import DATA
-from .test_fit import _walk
+from .builders import simulated_walk
 
 NAMES = ["free", "a", "b", "c"]
 
@@ -123,7 +123,7 @@ DAMPING = 4.961e-05
 
 
 def _noise_free(params) -> TrajectoryTable:
-    return _walk(params, 12, 0.0, 0)[0]
+    return simulated_walk(params, 12, 0.0, 0)[0]
 
 
 @pytest.mark.slow

@@ -13,7 +13,7 @@ from toywalk.sysid.discrepancy import candidates, diagnose
 from toywalk.sysid.fit import score_tests
 
 from ..conftest import DATA
-from .test_fit import _walk
+from .builders import simulated_walk
 
 #: The base model's free parameters in these tests (what a user would fit first).
 FREE = ["foot_radius", "com_offset[1]"]
@@ -28,7 +28,7 @@ def toy():
 def hidden(toy):
     """The recovery walk of tests/sysid/test_fit.py (trailing-foot share 0.1, 12 steps, 0.002
     rad) analysed with the base model, which lacks the share."""
-    table, _ = _walk(toy.replace(**{"effects.impact_trailing_share": 0.1}), 12, 0.002, 1)
+    table, _ = simulated_walk(toy.replace(**{"effects.impact_trailing_share": 0.1}), 12, 0.002, 1)
     return table, diagnose(table, toy, free=FREE, model="periodic")
 
 
@@ -69,7 +69,7 @@ def test_a_walk_of_the_base_model_is_adequate(toy, tmp_path):
     rate over 20 seeds is measured in docs/diagnose_null.csv. Its report is written, every
     ranking row with pipeline.md's keys (an adequate verdict's rows, no candidate fitted, had no
     estimate: the report's table raised KeyError, `toywalk diagnose` a traceback)."""
-    table, _ = _walk(toy, 12, 0.002, 11)
+    table, _ = simulated_walk(toy, 12, 0.002, 11)
     d = diagnose(table, toy, free=FREE, model="periodic")
     assert d.verdict == "adequate" and d.cause is None, d.evidence
     write_diagnosis(d, tmp_path)
@@ -150,7 +150,7 @@ def test_a_failed_fold_fit_is_retried_and_never_scored(monkeypatch):
 
 def _walk_table():
     """A four-step walk of the stable toy's gait, noiseless: enough for observations()."""
-    table, _ = _walk(load_params(DATA / "params" / "stable-toy.toml"), 4, 0.0, 0)
+    table, _ = simulated_walk(load_params(DATA / "params" / "stable-toy.toml"), 4, 0.0, 0)
     return table
 
 
@@ -165,15 +165,15 @@ def test_the_noise_of_the_scatter_is_chosen_signal_by_signal():
     takes its scatter, as before."""
     from toywalk.sysid.residuals import scatter_noise
 
-    from .test_residuals import _obs, _walk_signals
+    from .builders import grid_observations, walk_signals
 
     sd = 0.002
     rng = np.random.default_rng(7)
-    obs = _obs(n_steps=12, per_step=14)
+    obs = grid_observations(n_steps=12, per_step=14)
     running = rng.normal(0.0, sd, len(obs.time) + 2)
     correlated = (running[:-2] + running[1:-1] + running[2:]) / np.sqrt(3)
     pitch = obs.signal >= 2
-    obs.value = _walk_signals(obs, np.where(pitch, correlated, rng.normal(0.0, sd, len(obs.time))))
+    obs.value = walk_signals(obs, np.where(pitch, correlated, rng.normal(0.0, sd, len(obs.time))))
     scatter = {n: v["sd"] for n, v in scatter_noise(obs).items()}
     base = SimpleNamespace(noise_sd={"lean": sd, "steer": 10 * sd, "pitch_left": sd, "pitch_right": sd,
                                      "strike_time": 1e-5})
@@ -186,13 +186,13 @@ def test_the_noise_of_the_scatter_is_chosen_signal_by_signal():
     # the two pitches judged together, as the legs are mirror images: one pitch's white scatter
     # is not taken while the other's is refused (the walker's weights stay symmetric)
     right = obs.signal == 3
-    obs.value = _walk_signals(obs, np.where(right, correlated, rng.normal(0.0, sd, len(obs.time))))
+    obs.value = walk_signals(obs, np.where(right, correlated, rng.normal(0.0, sd, len(obs.time))))
     inflated = SimpleNamespace(noise_sd={**base.noise_sd, "pitch_left": 3 * sd, "pitch_right": 3 * sd})
     ratios = {n: v["sd_alternate"] / v["sd"] for n, v in scatter_noise(obs).items()}
     assert ratios["pitch_left"] <= discrepancy.NOISE_WHITENESS < ratios["pitch_right"]  # the case
     noise = discrepancy._scatter_check(obs, inflated)[0]
     assert noise["pitch_left"] == noise["pitch_right"] == 3 * sd and noise["steer"] < 2 * sd
-    obs.value = _walk_signals(obs, rng.normal(0.0, sd, len(obs.time)))
+    obs.value = walk_signals(obs, rng.normal(0.0, sd, len(obs.time)))
     white = {n: v["sd"] for n, v in scatter_noise(obs).items()}
     noise, taken, _ = discrepancy._scatter_check(obs, base)
     assert noise == white and taken == list(white)

@@ -8,7 +8,7 @@ test_walks_ties.py)."""
 
 import pytest
 
-from .test_discrepancy_effects import _is_named
+from .verdicts import assert_named
 
 
 @pytest.mark.slow
@@ -16,4 +16,4 @@ def test_the_spin_arrested_at_heel_strike_is_named():
     """A tenth of the landing foot's spin arrested (0.1011, 3.1 noise SDs beyond what the base
     fit mimics; seed 207): named (measured: 95 % [0.0897, 0.1119], the slope the runner-up 125.8
     behind in chi-square)."""
-    _is_named("effects.impact_spin_arrest", 0.10108097089540881, 207)
+    assert_named("effects.impact_spin_arrest", 0.10108097089540881, 207)

@@ -3,8 +3,6 @@ Jacobian against finite differences, an unstable gait, and the command line."""
 
 import json
 import math
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -19,30 +17,8 @@ from toywalk.sysid.fit import FitError, fit, fit_bounds, score_statistics
 from toywalk.sysid.measurement import MeasurementError, observations, operator
 
 from ..conftest import DATA
-
-
-def _walk(params, steps, noise, seed, gait=None, steps_per_time_unit=16, z0=None):
-    """A simulated walk from the gait (or from ``z0``), as a measured trajectory (angles with
-    noise, heel strikes including the one the walk starts from), like `toywalk simulate --noise`."""
-    gait = gait or find_gait(params)
-    z0 = gait.fixed_point if z0 is None else z0
-    traj = simulate(params, z0, steps, steps_per_time_unit=steps_per_time_unit)
-    rng = np.random.default_rng(seed)
-    signals = {k: v + rng.normal(0.0, noise, v.shape) for k, v in traj.angles().items()}
-    events = [{"time": 0.0, "foot": "L"}] + [{"time": e.time, "foot": e.foot} for e in traj.events]
-    return TrajectoryTable(traj.times, signals, traj.stance, events, {}), gait
-
-
-#: The parameters the recovery tests fit: foot radius, lateral mass offset and an impact parameter.
-RECOVERED = ["foot_radius", "com_offset[1]", "effects.impact_trailing_share"]
-
-
-def _start_off(truth):
-    """The recovery tests' start: foot radius 10 % and lateral offset 3 % off, trailing share
-    halfway to zero."""
-    return truth.replace(**{"foot_radius": 1.1 * truth.foot_radius,
-                            "com_offset[1]": 0.97 * truth.com_offset[1],
-                            "effects.impact_trailing_share": 0.05})
+from .builders import RECOVERED, simulated_walk, start_off
+from .command import run
 
 
 @pytest.fixture(scope="module")
@@ -55,7 +31,7 @@ def test_operator_reproduces_the_simulated_walk(toy):
     forward simulation (RK8 shooting) of the same gait: two independent integrations."""
     # Samples between the integration grid's nodes are cubic Hermite interpolants, O(dt^4): 1e-5
     # rad at the default 16 steps per sqrt(l/g); at 128 they are below 1e-8.
-    table, gait = _walk(toy, 6, 0.0, 0, steps_per_time_unit=128)
+    table, gait = simulated_walk(toy, 6, 0.0, 0, steps_per_time_unit=128)
     obs = observations(table)
     prob = bvp(False, 30, 4, 1)
     walker = Walker(toy)
@@ -76,7 +52,7 @@ def test_operator_reproduces_the_simulated_walk(toy):
 
 
 def test_observations_refuse_unusable_walks(toy):
-    table, _ = _walk(toy, 4, 0.0, 0)
+    table, _ = simulated_walk(toy, 4, 0.0, 0)
     short = TrajectoryTable(table.time, table.signals, table.stance, table.events[:2], {})
     with pytest.raises(MeasurementError, match="at least 3"):
         observations(short)
@@ -96,7 +72,7 @@ def test_observations_keep_the_longest_run_of_complete_steps(toy):
     the rest set aside, said in a note: one strike missed leaves the same foot twice in a row, two
     missed leave the feet alternating across about three steps, which read as one step would
     compare three steps with one model step (the fit took such a walk without a word)."""
-    table, _ = _walk(toy, 12, 0.0, 0)
+    table, _ = simulated_walk(toy, 12, 0.0, 0)
     events = table.events
     whole = observations(table)
     assert whole.note is None and whole.n_steps == 12
@@ -125,8 +101,8 @@ def test_fit_recovers_foot_radius_mass_offset_and_impact_share(toy):
     impulse share: the fit from a start 10 % off recovers the three parameters within three
     reported standard errors, and the residuals are at the noise level."""
     truth = toy.replace(**{"effects.impact_trailing_share": 0.1})
-    table, gait = _walk(truth, 12, 0.002, 1)
-    start, free = _start_off(truth), RECOVERED
+    table, gait = simulated_walk(truth, 12, 0.002, 1)
+    start, free = start_off(truth), RECOVERED
     result = fit(table, start, free)
     assert result.success, result.status
     for name in free:
@@ -151,7 +127,7 @@ def test_fit_follows_an_unstable_gait():
     truth = load_params(DATA / "params" / "tinkertoy.toml")
     gait = find_gait(truth)
     assert gait.max_abs_eigenvalue > 4
-    table, _ = _walk(truth, 6, 0.002, 2, gait)
+    table, _ = simulated_walk(truth, 6, 0.002, 2, gait)
     start = truth.replace(foot_radius=1.08 * truth.foot_radius)
     off = simulate(start, find_gait(start).fixed_point + 1e-3, 12)
     assert off.status == "fell"  # shooting cannot follow it for long
@@ -195,36 +171,31 @@ def test_intervals_are_calibrated_over_20_seeds(toy):
 
 
 def test_fit_refuses_bad_requests(toy):
-    table, _ = _walk(toy, 3, 0.001, 0)
+    table, _ = simulated_walk(toy, 3, 0.001, 0)
     with pytest.raises(FitError, match="not a parameter"):
         fit(table, toy, ["foot_radiuss"])
     with pytest.raises(FitError, match="named twice"):
         fit(table, toy, ["foot_radius", "foot_radius"])
 
 
-def _run(*args):
-    return subprocess.run([sys.executable, "-m", "toywalk.sysid.cli", *map(str, args)],
-                          capture_output=True, text=True, timeout=600)
-
-
 def test_fit_command(tmp_path):
     params = DATA / "params" / "stable-toy.toml"
     walk = tmp_path / "walk.csv"
-    assert _run("simulate", "--params", params, "--steps", "8", "--noise", "0.002", "--seed", "5",
-                "--out", walk).returncode == 0
-    out = _run("fit", walk, "--params", params, "--free", "foot_radius,com_offset[1]",
-               "--out", tmp_path / "fit.json")
+    assert run("simulate", "--params", params, "--steps", "8", "--noise", "0.002", "--seed", "5",
+               "--out", walk).returncode == 0
+    out = run("fit", walk, "--params", params, "--free", "foot_radius,com_offset[1]",
+              "--out", tmp_path / "fit.json")
     assert out.returncode == 0, out.stderr
     report = json.loads((tmp_path / "fit.json").read_text())
     for key in ("estimates", "std", "covariance", "residual_rms", "status"):
         assert key in report
     assert set(report["estimates"]) >= {"foot_radius", "com_offset[1]"}
     assert math.isfinite(report["std"]["foot_radius"])
-    bad = _run("fit", walk, "--params", params, "--free", "warp", "--out", tmp_path / "bad.json")
+    bad = run("fit", walk, "--params", params, "--free", "warp", "--out", tmp_path / "bad.json")
     assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1
     assert "not a parameter" in bad.stderr and not (tmp_path / "bad.json").exists()
-    missing = _run("fit", tmp_path / "nope.csv", "--params", params, "--free", "foot_radius",
-                   "--out", tmp_path / "m.json")
+    missing = run("fit", tmp_path / "nope.csv", "--params", params, "--free", "foot_radius",
+                  "--out", tmp_path / "m.json")
     assert missing.returncode == 2 and "not found" in missing.stderr
 
 
@@ -232,7 +203,7 @@ def test_fit_says_when_a_parameter_is_weakly_determined(toy):
     """The stable toy leans 0.3 deg: its lateral foot radius barely shows in the angles. The fit
     says so (standard error larger than the parameter's magnitude), and an estimate that ends on
     its bound is clipped into it, so that the fitted walker is valid."""
-    table, _ = _walk(toy, 8, 0.002, 3)
+    table, _ = simulated_walk(toy, 8, 0.002, 3)
     result = fit(table, toy, ["foot_lateral_radius", "foot_radius"], check_jacobian=False)
     assert any("foot_lateral_radius is weakly determined" in note for note in result.warnings)
     assert result.std["foot_lateral_radius"] > toy.foot_lateral_radius
@@ -244,7 +215,7 @@ def test_a_prior_on_the_slope_combines_with_the_data(toy):
     """The slope as measured with its error: a Gaussian prior adds (theta - mean) / sd to the
     residuals. With a prior twice as tight as the data, 2 data-SEs away, the estimate moves
     towards the prior's mean and its SE falls below both the prior's SD and the data's SE."""
-    table, _ = _walk(toy, 8, 0.002, 4)
+    table, _ = simulated_walk(toy, 8, 0.002, 4)
     free = ["slope", "foot_radius"]
     data_only = fit(table, toy, free, check_jacobian=False)
     sd = 0.5 * data_only.std["slope"]
@@ -265,7 +236,7 @@ def test_foot_radii_stay_ordered():
     constraint). Either way the fitted walker is valid, and a failed fit is refused by the
     sampler with the reason."""
     params = load_params(DATA / "params" / "compass-3d.toml")
-    table, _ = _walk(params, 6, 0.003, 21)
+    table, _ = simulated_walk(params, 6, 0.003, 21)
     start = params.replace(foot_radius=0.97 * params.foot_radius,
                            foot_lateral_radius=0.97 * params.foot_radius)
     one = fit(table, start, ["com_offset[2]", "foot_radius"])

@@ -10,7 +10,8 @@ from toywalk.model.trajectory import read_trajectory
 from toywalk.sysid.fit import fit, periodicity_test
 
 from ..conftest import DATA
-from .test_fit import _run, _walk
+from .builders import simulated_walk
+from .command import run
 
 FREE = ["foot_radius", "com_offset[1]"]
 TOY = DATA / "params" / "stable-toy.toml"
@@ -20,8 +21,8 @@ def _hidden_trailing_share(tmp_path, noise):
     """`toywalk simulate`'s 10-step walk of the stable toy with a trailing share of 0.1 (an effect
     the fit holds at zero), exact contact positions (their SDs estimated: two passes), seed 1."""
     walk = tmp_path / "walk.csv"
-    out = _run("simulate", "--params", TOY, "--steps", "10", "--effect", "impact_trailing_share=0.1",
-               "--noise", noise, "--seed", "1", "--out", walk)
+    out = run("simulate", "--params", TOY, "--steps", "10", "--effect", "impact_trailing_share=0.1",
+              "--noise", noise, "--seed", "1", "--out", walk)
     assert out.returncode == 0, out.stderr
     return read_trajectory(walk), json.loads(walk.with_suffix(".json").read_text())
 
@@ -93,7 +94,7 @@ def test_a_fit_says_when_its_residuals_are_mostly_misfit():
     the same walker without it, nothing."""
     toy = load_params(DATA / "params" / "stable-toy.toml")
     free = ["foot_radius", "com_offset[1]"]
-    table, _ = _walk(toy.replace(**{"effects.impact_trailing_share": 0.1}), 10, 0.002, 3)
+    table, _ = simulated_walk(toy.replace(**{"effects.impact_trailing_share": 0.1}), 10, 0.002, 3)
     missing = fit(table, toy, free, check_jacobian=False)
     assert missing.noise_source == "estimated from residuals"
     note = [w for w in missing.warnings if "the model misses the walk" in w]
@@ -104,7 +105,7 @@ def test_a_fit_says_when_its_residuals_are_mostly_misfit():
         ("lean", "steer", "pitch_left", "pitch_right"), 0.002))
     note = [w for w in stated.warnings if "the model misses the walk" in w]
     assert len(note) == 1 and "the noise SDs stated (pitch_left" in note[0], stated.warnings
-    table, _ = _walk(toy, 10, 0.002, 3)
+    table, _ = simulated_walk(toy, 10, 0.002, 3)
     fitting = fit(table, toy, free, check_jacobian=False)
     assert not any("the model misses the walk" in w for w in fitting.warnings), fitting.warnings
     fitting = fit(table, toy, free, check_jacobian=False, noise_sd=dict.fromkeys(

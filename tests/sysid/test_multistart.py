@@ -4,8 +4,6 @@ one optimum, the verdict on distinct optima, and the command line."""
 import json
 import math
 import shutil
-import subprocess
-import sys
 from types import SimpleNamespace
 
 import pytest
@@ -16,7 +14,8 @@ from toywalk.sysid.multistart import DISTINCT_CHI2, DISTINCT_SE, carried_over, m
 from toywalk.sysid.multistart import _optima as optima_of
 
 from ..conftest import DATA
-from .test_fit import _walk
+from .builders import simulated_walk
+from .command import run
 
 FREE = ["foot_radius", "com_offset[1]"]
 # A smaller mesh than the fit's default (30): the starts are compared with one another, not with a
@@ -32,7 +31,7 @@ def toy():
 @pytest.fixture(scope="module")
 def walk(toy):
     """7 steps of the stable toy with 0.002 rad noise (about what the tracker measures)."""
-    table, _ = _walk(toy, 7, 0.002, 3)
+    table, _ = simulated_walk(toy, 7, 0.002, 3)
     return table
 
 
@@ -149,11 +148,6 @@ def test_distinct_optima_are_reported_with_numbers():
     assert len(optima) == 2 and warnings[0].startswith("starts disagree: 2 distinct optima")
 
 
-def _run(*args):
-    return subprocess.run([sys.executable, "-m", "toywalk.sysid.cli", *map(str, args)],
-                          capture_output=True, text=True, timeout=600)
-
-
 def test_fit_command_multistart(tmp_path):
     """``--multistart DIR``: one line per start, the verdict, and the runs in the fit file. Two
     sets keep it short (without DIR it is every shipped set): the toy-sized walker, and the
@@ -165,10 +159,10 @@ def test_fit_command_multistart(tmp_path):
     for name in ("stable-toy", "toy-sized"):
         shutil.copy(DATA / "params" / f"{name}.toml", sets)
     walk = tmp_path / "walk.csv"
-    assert _run("simulate", "--params", params, "--steps", "7", "--noise", "0.002", "--seed", "5",
-                "--out", walk).returncode == 0
-    out = _run("fit", walk, "--params", params, "--free", ",".join(FREE), "--model", "periodic",
-               "--intervals", MESH, "--multistart", sets, "--out", tmp_path / "fit.json")
+    assert run("simulate", "--params", params, "--steps", "7", "--noise", "0.002", "--seed", "5",
+               "--out", walk).returncode == 0
+    out = run("fit", walk, "--params", params, "--free", ",".join(FREE), "--model", "periodic",
+              "--intervals", MESH, "--multistart", sets, "--out", tmp_path / "fit.json")
     assert out.returncode == 0, out.stderr
     lines = out.stdout.splitlines()
     for k, name in enumerate(("user, stable-toy", "toy-sized")):
@@ -185,8 +179,8 @@ def test_fit_command_multistart(tmp_path):
     # The same optimum (a re-run from it when another start wins moves chi2 by round-off only).
     assert_allclose(report["chi2"], block["optima"][0]["chi2"], atol=1e-3)
 
-    bad = _run("fit", walk, "--params", params, "--free", "foot_radius", "--multistart",
-               tmp_path / "nope", "--out", tmp_path / "bad.json")
+    bad = run("fit", walk, "--params", params, "--free", "foot_radius", "--multistart",
+              tmp_path / "nope", "--out", tmp_path / "bad.json")
     assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1
     assert "--multistart" in bad.stderr and not (tmp_path / "bad.json").exists()
 
@@ -209,8 +203,8 @@ def test_another_start_winning_is_checked_from_its_own_optimum(toy, tmp_path, mo
 
     monkeypatch.setattr(ms, "_optima", last_first)
     walk = tmp_path / "walk.csv"
-    assert _run("simulate", "--params", DATA / "params" / "stable-toy.toml", "--steps", "7", "--noise",
-                "0.002", "--seed", "5", "--out", walk).returncode == 0
+    assert run("simulate", "--params", DATA / "params" / "stable-toy.toml", "--steps", "7", "--noise",
+               "0.002", "--seed", "5", "--out", walk).returncode == 0
     sized = load_params(DATA / "params" / "toy-sized.toml")
     result = multi_start(read_trajectory(walk), toy, FREE, starts={"toy-sized": sized}, n_intervals=MESH,
                          model="periodic", check_jacobian=True)

@@ -16,7 +16,7 @@ from toywalk.sysid.naming import SEPARATION, tied
 from toywalk.sysid.walks import diagnose_walks
 
 from ..conftest import DATA
-from .test_fit import _walk
+from .builders import simulated_walk
 
 FREE = ["foot_radius", "com_offset[1]"]
 #: The tied pair: the hinge's viscous and dry friction, which a walk on its cycle moves along
@@ -30,7 +30,7 @@ NOISE = 0.002
 
 def _measured(params, seed: int) -> TrajectoryTable:
     """A simulated walk with its noise SD stated, as `toywalk simulate --noise` writes it."""
-    table, _ = _walk(params.replace(**{"effects.hip_damping": DAMPING}), 10, NOISE, seed)
+    table, _ = simulated_walk(params.replace(**{"effects.hip_damping": DAMPING}), 10, NOISE, seed)
     sds = {f"{n}_sd": np.full(len(table.time), NOISE) for n in list(table.signals)}
     return TrajectoryTable(table.time, {**table.signals, **sds}, table.stance, table.events, {})
 

@@ -4,18 +4,18 @@ known: a walk the model can produce passes them, one with a pattern the model la
 import numpy as np
 from toywalk.sysid.diagnostics import CHECKED_FEATURES, MISFIT_SDS, misfit_notes, predictive_checks
 
-from .test_residuals import _obs, _walk_signals
+from .builders import grid_observations, walk_signals
 
 SD = 0.002
 
 
 class _Posterior:
-    """A stand-in for sysid.likelihood.LogPosterior: the 'model' is ``_walk_signals`` without
+    """A stand-in for sysid.likelihood.LogPosterior: the 'model' is ``walk_signals`` without
     noise scaled by ``theta[0]``; a draw below 0.5 has no gait."""
 
     def __init__(self, obs):
         self.obs, self.sigma = obs, np.full(len(obs.value), SD)
-        self.shape = _walk_signals(obs, np.zeros(len(obs.value)))
+        self.shape = walk_signals(obs, np.zeros(len(obs.value)))
 
     def gait(self, theta):
         return (None, None) if theta[0] < 0.5 else (float(theta[0]), None)
@@ -40,7 +40,7 @@ def test_a_walk_the_model_makes_passes_and_a_pattern_it_lacks_fails():
     The same walks with the steer swinging 5 % wider than the model's (measured over 30 seeds:
     chi-square p 0 in all, the steer range's p at most 0.1, median 0): chi-square p = 0 and the
     steer range's at most 0.1 in each of 5 seeds. A draw with no gait is skipped."""
-    obs = _obs(n_steps=12, per_step=14)
+    obs = grid_observations(n_steps=12, per_step=14)
     post = _Posterior(obs)
     ps = []
     for seed in range(10):
@@ -75,7 +75,7 @@ def test_misfit_notes_name_failing_checks_and_the_fits_warnings():
     to 7.8 (named in 19); here 3 seeds, each naming chi-square, and the steer range (7.3) at
     seed 0."""
     assert MISFIT_SDS == 4.0
-    obs = _obs(n_steps=12, per_step=14)
+    obs = grid_observations(n_steps=12, per_step=14)
     post = _Posterior(obs)
     for seed in range(6):
         rng = np.random.default_rng(seed)

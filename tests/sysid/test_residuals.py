@@ -4,31 +4,10 @@ gait features, on synthetic residuals whose truth is known."""
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
-from toywalk.sysid.measurement import Observations
 from toywalk.sysid.residuals import feature_misfit, phase_bins, residual_report, step_features
 
 from ..conftest import loaded_by
-
-
-def _obs(n_steps=16, per_step=40, rng=None):
-    """Observations of ``n_steps`` steps of 0.1 s, ``per_step`` samples a signal a step, values 0."""
-    rng = np.random.default_rng(rng)
-    start = np.arange(n_steps) * 0.1
-    rows = {k: [] for k in ("step", "phase", "signal", "time")}
-    for k in range(n_steps):
-        phase = (np.arange(per_step) + 0.5) / per_step
-        for s in range(4):
-            rows["step"].append(np.full(per_step, k))
-            rows["phase"].append(phase)
-            rows["signal"].append(np.full(per_step, s))
-            rows["time"].append(start[k] + 0.1 * phase)
-    data = {k: np.concatenate(v) for k, v in rows.items()}
-    n = len(data["step"])
-    return Observations(step_start=start, step_end=start + 0.1,
-                        stance=np.array(["L", "R"] * (n_steps // 2)), duration_sd=np.full(n_steps, 1e-4),
-                        step=data["step"], phase=data["phase"], signal=data["signal"],
-                        value=np.zeros(n), sd=np.full(n, np.nan), time=data["time"],
-                        strike_sd=np.full(n_steps + 1, 1e-4))
+from .builders import grid_observations, walk_signals
 
 
 def test_pattern_test_holds_its_false_alarm_rate():
@@ -37,7 +16,7 @@ def test_pattern_test_holds_its_false_alarm_rate():
     so 0.02-0.08 is about 3 SD either way; a test with the wrong degrees of freedom falls outside
     it."""
     rng = np.random.default_rng(0)
-    obs = _obs(rng=rng)
+    obs = grid_observations(rng=rng)
     p = []
     for _ in range(100):
         rep = residual_report(obs, rng.normal(0.0, 0.002, obs.value.shape))
@@ -53,7 +32,7 @@ def test_pattern_test_finds_a_pattern_and_whiteness_tests_see_correlation():
     19, at 0.5 mrad below 0.025 in 16); the same size of random offset per step is not a
     pattern."""
     rng = np.random.default_rng(1)
-    obs = _obs(rng=rng)
+    obs = grid_observations(rng=rng)
     noise = rng.normal(0.0, 0.002, obs.value.shape)
     side = np.where(obs.stance[obs.step] == "L", 1.0, -1.0)  # a model's lean misfit flips with it
     pattern = 0.0015 * np.sin(2 * np.pi * obs.phase) * (obs.signal == 0) * side
@@ -76,10 +55,10 @@ def test_phase_bins_follow_the_samples_a_step():
     components: 0.035 below 0.05, within 0.02-0.08 as above) and finds a pattern at 1.5 times
     the noise (3 mrad under 2 mrad, 16 steps): p at most 2.1e-7 over 20 seeds (with 2 mrad up to
     2.5e-3, at the verdict's level), where the fixed 10 bins gave NaN."""
-    assert phase_bins(_obs(per_step=40)) == 10
-    assert phase_bins(_obs(per_step=6)) == 6
+    assert phase_bins(grid_observations(per_step=40)) == 10
+    assert phase_bins(grid_observations(per_step=6)) == 6
     rng = np.random.default_rng(0)
-    obs = _obs(per_step=6, rng=rng)
+    obs = grid_observations(per_step=6, rng=rng)
     p = [t["pattern_p"] for _ in range(100)
          for t in residual_report(obs, rng.normal(0.0, 0.002, obs.value.shape)).tests.values()]
     assert 0.02 < np.mean(np.array(p) < 0.05) < 0.08
@@ -96,7 +75,7 @@ def test_features_and_their_misfit():
     """Features from known curves: lean a sine of amplitude A has range 2A (the degree-6 curve
     through 40 samples: within 0.4 %); the misfit of a model with a 10 % smaller lean is found, the left-right
     difference of a walk whose right steps lean more is found."""
-    obs = _obs(n_steps=12)
+    obs = grid_observations(n_steps=12)
     amp = 0.05
     measured = amp * np.sin(2 * np.pi * obs.phase) * (obs.signal == 0)
     f = step_features(obs, measured)
@@ -114,15 +93,6 @@ def test_features_and_their_misfit():
     lopsided = noisy * np.where(obs.stance[obs.step] == "R", 1.1, 1.0)
     lr = feature_misfit(obs, lopsided, measured, sigma=sigma, rng=4)["lean_range_right_minus_left"]
     assert lr["z"] > 5 and lr["measured"] == pytest.approx(0.2 * amp, rel=0.2)
-
-
-def _walk_signals(obs, noise):
-    """Smooth angles a walker might show (0.05-0.3 rad at 1.25-2.5 Hz, jumping at every step's
-    start as a heel strike's rates do) plus ``noise`` (one value per observation)."""
-    k, t = obs.step, obs.time
-    w = 2 * np.pi * np.array([1.25, 1.25, 2.5, 2.5])[obs.signal]
-    amp = np.array([0.05, 0.1, 0.3, 0.3])[obs.signal]
-    return amp * np.sin(w * t + k) + 0.5 * (t - obs.step_start[k]) * (-1.0) ** k + noise
 
 
 def test_scatter_noise_measures_white_noise_and_sees_correlated_noise():
@@ -143,9 +113,9 @@ def test_scatter_noise_measures_white_noise_and_sees_correlated_noise():
     ratios, white_flagged, correlated_seen = [], 0, 0
     for seed in range(20):
         rng = np.random.default_rng(seed)
-        obs = _obs(n_steps=12, per_step=14)
+        obs = grid_observations(n_steps=12, per_step=14)
         obs.time = obs.time + rng.uniform(-0.1, 0.1, len(obs.time)) * 0.1 / 14
-        obs.value = _walk_signals(obs, rng.normal(0.0, sd, len(obs.time)))
+        obs.value = walk_signals(obs, rng.normal(0.0, sd, len(obs.time)))
         got = scatter_noise(obs)
         assert set(got) == {"lean", "steer", "pitch_left", "pitch_right"}
         for name, v in got.items():
@@ -154,13 +124,13 @@ def test_scatter_noise_measures_white_noise_and_sees_correlated_noise():
             ratios.append(v["sd"] / sd)
             white_flagged += v["sd_alternate"] / v["sd"] > NOISE_WHITENESS
         running = rng.normal(0.0, sd, (len(obs.time) + 2))
-        obs.value = _walk_signals(obs, (running[:-2] + running[1:-1] + running[2:]) / np.sqrt(3))
+        obs.value = walk_signals(obs, (running[:-2] + running[1:-1] + running[2:]) / np.sqrt(3))
         correlated_seen += sum(v["sd_alternate"] / v["sd"] > NOISE_WHITENESS
                                for v in scatter_noise(obs).values())
     assert abs(np.mean(ratios) - 1) < 0.04, np.mean(ratios)
     assert white_flagged <= 10 and correlated_seen >= 56, (white_flagged, correlated_seen)
     # the reference: even spacing, pure noise
-    obs = _obs(n_steps=3, per_step=30)
+    obs = grid_observations(n_steps=3, per_step=30)
     obs.value = np.random.default_rng(1).normal(0.0, sd, len(obs.time))
     for s, name in enumerate(("lean", "steer", "pitch_left", "pitch_right")):
         want = np.concatenate([np.diff(obs.value[(obs.signal == s) & (obs.step == k)], 4) for k in range(3)])
@@ -173,7 +143,7 @@ def test_features_of_a_walk_with_few_samples_a_step():
     alike (a sine's range within 1 %: the degree-5 curve through 11 samples), and the left-right
     difference of a walk whose right steps were not seen is NaN, quietly (warnings are errors
     here)."""
-    obs = _obs(n_steps=12, per_step=11)
+    obs = grid_observations(n_steps=12, per_step=11)
     amp = 0.05
     measured = amp * np.sin(2 * np.pi * obs.phase) * (obs.signal == 0)
     f = step_features(obs, measured)
@@ -182,7 +152,7 @@ def test_features_of_a_walk_with_few_samples_a_step():
     noisy = measured + np.random.default_rng(5).normal(0.0, 0.002, measured.shape)
     misfit = feature_misfit(obs, noisy, 0.9 * measured, sigma=np.full(len(noisy), 0.002), rng=6)
     assert misfit["lean_range"]["z"] > 5
-    assert np.isnan(step_features(_obs(n_steps=2, per_step=4), np.zeros(32))["lean_range"]).all()
+    assert np.isnan(step_features(grid_observations(n_steps=2, per_step=4), np.zeros(32))["lean_range"]).all()
     right_unseen = np.where(obs.stance[obs.step] == "R", np.nan, measured)
     assert np.isnan(feature_misfit(obs, right_unseen, 0.9 * measured)
                     ["lean_range_right_minus_left"]["difference"])
@@ -199,7 +169,7 @@ def test_step_dependence_tells_a_walk_off_its_cycle_from_a_misfit():
     from toywalk.sysid.residuals import step_dependence
 
     sd = 0.002
-    obs = _obs(n_steps=12, per_step=17)
+    obs = grid_observations(n_steps=12, per_step=17)
     foot = np.where(obs.stance[obs.step] == "L", 1.0, -0.6)
     misfit = 50 * sd * foot * np.sin(2 * np.pi * obs.phase + obs.signal) * np.exp(-obs.phase)
     departure = 5 * sd * 0.9 ** obs.step * np.cos(np.pi * obs.phase + obs.signal)
@@ -219,7 +189,7 @@ def test_step_dependence_tells_a_walk_off_its_cycle_from_a_misfit():
     assert r["dfn"] == 4 * 2 * 15 and r["dfd"] == 816 - 4 * 2 * (9 + 15)
     # too few samples a step for the curves: no test (NaN), which leaves the choice to the
     # likelihood ratio (toywalk.sysid.fit.periodicity_test)
-    short = _obs(n_steps=2, per_step=5)
+    short = grid_observations(n_steps=2, per_step=5)
     assert np.isnan(step_dependence(short, np.zeros(len(short.time)))["p"])
 
 

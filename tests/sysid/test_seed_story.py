@@ -7,7 +7,7 @@ from toywalk.model.parameters import load_params
 from toywalk.sysid.discrepancy import diagnose
 
 from ..conftest import DATA
-from .test_fit import _walk
+from .builders import simulated_walk
 
 
 @pytest.mark.slow
@@ -22,7 +22,7 @@ def test_the_seeds_story_a_point_foot_model_of_a_round_footed_walker():
     `unexplained` (a fore-aft mass offset fitted, leaving a repeated pattern)."""
     truth = load_params(DATA / "params" / "clearing-toy.toml")
     base = truth.replace(foot_radius=0.0, foot_lateral_radius=0.0)
-    table, gait = _walk(truth, 12, 0.002, 7)
+    table, gait = simulated_walk(truth, 12, 0.002, 7)
     d = diagnose(table, base, free=[], model="periodic")
     assert d.base.noise_source.startswith("scatter"), d.evidence
     # the scatter of 12 steps at 162 samples/s: within 0.4 of the truth (4 SD, test_residuals.py;

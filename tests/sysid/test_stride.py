@@ -10,7 +10,7 @@ from toywalk.sysid.measurement import MeasurementError, observations
 from toywalk.sysid.sample import posterior_from_fit
 
 from ..conftest import DATA
-from .test_fit import RECOVERED, _start_off, _walk
+from .builders import RECOVERED, simulated_walk, start_off
 
 #: Contact-position noise (m): a fifth of a millimetre, a tracker's error on a toy filmed whole.
 POSITION_SD = 2e-4
@@ -19,7 +19,7 @@ POSITION_SD = 2e-4
 def _located(truth, steps, noise, position_sd, seed):
     """A simulated walk with its heel strikes' contact positions (noise ``position_sd``, m, and
     that SD in the events file; exact without noise), from the strike the walk starts with."""
-    table, gait = _walk(truth, steps, noise, seed)
+    table, gait = simulated_walk(truth, steps, noise, seed)
     traj = simulate(truth, gait.fixed_point, steps)
     rng = np.random.default_rng(seed + 1000)
     strikes = [(0.0, "L", 0.0, 0.0)] + [(e.time, e.foot, e.x, e.y) for e in traj.events]
@@ -76,7 +76,7 @@ def both(truth):
     """The recovery walk of tests/sysid/test_fit.py (12 steps, 0.002 rad, seed 1), fitted from
     its angles and strikes alone and with its contact positions."""
     located, angles_only = _located(truth, 12, 0.002, POSITION_SD, 1)
-    start = _start_off(truth)
+    start = start_off(truth)
     return located, fit(located, start, RECOVERED), fit(angles_only, start, RECOVERED)
 
 

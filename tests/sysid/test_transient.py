@@ -14,7 +14,7 @@ from toywalk.sysid.fit import FitError, fit, periodicity_test
 from toywalk.sysid.measurement import MeasurementError, model_steps, observations, operator
 
 from ..conftest import DATA
-from .test_fit import RECOVERED, _start_off, _walk
+from .builders import RECOVERED, simulated_walk, start_off
 
 #: Lean rate of the released walk: 1.3 times the gait's (-0.51 rad/s on the cycle, an extra
 #: -0.15 rad/s); the stable toy's slowest eigenvalues (|lambda| = 0.97) keep this visible over
@@ -27,7 +27,7 @@ def _released(params, steps, noise, seed, kick=_KICK, steps_per_time_unit=16):
     gait = find_gait(params)
     z0 = gait.fixed_point.copy()
     z0[1] *= kick
-    table, _ = _walk(params, steps, noise, seed, gait, steps_per_time_unit, z0)
+    table, _ = simulated_walk(params, steps, noise, seed, gait, steps_per_time_unit, z0)
     return table, z0
 
 
@@ -89,7 +89,7 @@ def test_periodicity_test_rejects_a_released_walk_and_the_transient_fit_recovers
     -0.7, 0.1 and 1.7 when fitted aligned on the measured strikes (its first stage)."""
     truth = toy.replace(**{"effects.impact_trailing_share": 0.1})
     table, z0 = _released(truth, 12, 0.002, 1)
-    start, free = _start_off(truth), RECOVERED
+    start, free = start_off(truth), RECOVERED
     test = periodicity_test(table, start, free)
     assert test.appropriate is False and test.p_value < 1e-6, test.message
     assert test.dof == 7 and test.chosen is test.transient
@@ -130,7 +130,7 @@ def test_a_walk_on_its_cycle_that_the_model_misfits_stays_periodic(toy):
     walk is kept periodic and the message says why. The released walk above is still rejected
     (there F = 1300)."""
     truth = toy.replace(**{"effects.rolling_resistance": 2e-4})
-    table, _ = _walk(truth, 12, 0.002, 5711)
+    table, _ = simulated_walk(truth, 12, 0.002, 5711)
     said = []
     test = periodicity_test(table, toy, [], progress=said.append)
     # a line before each fit (toywalk fit prints them in a terminal: a long walk's take minutes)

@@ -17,8 +17,8 @@ from toywalk.sysid.naming import SEPARATION
 from toywalk.sysid.walks import diagnose_walks, fit_walks, without_unweighed_contacts
 
 from ..conftest import DATA
-from .test_cli import run
-from .test_fit import _walk
+from .builders import simulated_walk
+from .command import run
 
 FREE = ["foot_radius", "com_offset[1]"]
 NOISE = dict.fromkeys(("lean", "steer", "pitch_left", "pitch_right"), 0.002)
@@ -33,7 +33,7 @@ def test_one_walk_is_the_single_fit_and_a_walk_twice_halves_the_variance(toy):
     """The joint problem of one walk is the single fit's (same NLP, the same optimum): the same
     estimates, SEs and chi-square; the same walk given twice doubles the chi-square and the
     information, so the estimates stay and the SEs shrink by sqrt(2)."""
-    table, _ = _walk(toy, 12, 0.002, 401)
+    table, _ = simulated_walk(toy, 12, 0.002, 401)
     single = fit(table, toy, FREE, noise_sd=NOISE, check_jacobian=False)
     one = fit_walks([table], [toy], FREE, noise_sd=NOISE)
     assert single.success and one.success
@@ -56,7 +56,7 @@ def test_a_walk_whose_gait_search_fails_starts_from_the_last_walks_gait(toy, mon
     import toywalk.sysid.fit as fit_module
 
     flatter = toy.replace(slope=0.95 * toy.slope)
-    tables = [_walk(p, 6, 0.002, 11 + k)[0] for k, p in enumerate((toy, flatter))]
+    tables = [simulated_walk(p, 6, 0.002, 11 + k)[0] for k, p in enumerate((toy, flatter))]
     plain = fit_walks(tables, [toy, flatter], FREE, noise_sd=NOISE)
     search = fit_module.find_gait
 
@@ -82,7 +82,7 @@ def _two_slopes():
     tables, walkers = [], []
     for seed, factor in ((31, 1.0), (32, 0.8)):
         w = walker.replace(slope=walker.slope * factor)
-        table, _ = _walk(w.replace(**{"effects.hip_damping": 0.002}), 16, 0.002, seed)
+        table, _ = simulated_walk(w.replace(**{"effects.hip_damping": 0.002}), 16, 0.002, seed)
         sds = {f"{n}_sd": np.full(len(table.time), 0.002) for n in list(table.signals)}
         tables.append(TrajectoryTable(table.time, {**table.signals, **sds}, table.stance,
                                       table.events, {}))
@@ -137,7 +137,7 @@ def test_held_out_folds_in_processes_and_on_dask_are_the_serial_ones(toy, tmp_pa
     from toywalk.sysid.walks import held_out_walks
 
     flatter = toy.replace(slope=0.95 * toy.slope)
-    tables = [_walk(p, 6, 0.002, 31 + k)[0] for k, p in enumerate((toy, flatter))]
+    tables = [simulated_walk(p, 6, 0.002, 31 + k)[0] for k, p in enumerate((toy, flatter))]
     whole = fit_walks(tables, [toy, flatter], FREE, noise_sd=NOISE)
     serial = held_out_walks(tables, [toy, flatter], whole)
     local = held_out_walks(tables, [toy, flatter], whole, workers=2)
@@ -157,7 +157,7 @@ def test_walks_of_the_base_model_are_adequate_and_nothing_is_fitted(toy):
     and no candidate is fitted, as in the single walk's analysis (docs/tie_null.csv: 40 of 40
     adequate with three walks and two free parameters)."""
     flatter = toy.replace(slope=0.9 * toy.slope)
-    tables = [_walk(p, 8, 0.002, 900 + k)[0] for k, p in enumerate((toy, flatter))]
+    tables = [simulated_walk(p, 8, 0.002, 900 + k)[0] for k, p in enumerate((toy, flatter))]
     d = diagnose_walks(tables, [toy, flatter], noise_sd=NOISE)
     assert d.verdict == "adequate" and d.cause is None, d.evidence
     assert d.extended == {} and all("lr" not in r for r in d.ranking)
@@ -186,7 +186,7 @@ def test_contact_positions_without_sds_are_left_out():
 
 
 def test_bad_input_is_refused(toy, tmp_path):
-    table, _ = _walk(toy, 4, 0.002, 1)
+    table, _ = simulated_walk(toy, 4, 0.002, 1)
     with pytest.raises(FitError, match="one parameter set per walk"):
         fit_walks([table, table], [toy], FREE)
     with pytest.raises(FitError, match="one parameter set per walk"):
@@ -217,7 +217,7 @@ def test_three_walks_name_hip_dry_friction(toy, tmp_path):
     bases = [toy, toy.replace(slope=0.8 * toy.slope), toy.replace(com_offset=offset)]
     args = ["diagnose"]
     for k, b in enumerate(bases):
-        write_trajectory(_walk(b.replace(**{"effects.hip_coulomb": truth}), 12, 0.002, 500 + k)[0],
+        write_trajectory(simulated_walk(b.replace(**{"effects.hip_coulomb": truth}), 12, 0.002, 500 + k)[0],
                          tmp_path / f"walk{k}.csv")
         save_params(b, tmp_path / f"walk{k}.toml")
         args.append(tmp_path / f"walk{k}.csv")

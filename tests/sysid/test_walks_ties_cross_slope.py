@@ -1,11 +1,11 @@
 """A cross slope, which one walk leaves nearly tied with an uneven build (both walk the toy at a
-steady steer angle), named from three walks analysed together (tests/sysid/test_walks_ties.py,
-whose walks and checks these are; a module of its own so that the suite's two workers share the
-long cases)."""
+steady steer angle), named from three walks analysed together (the walks and checks of
+tests/sysid/test_walks_ties.py, in tests/sysid/verdicts.py; a module of its own so that the
+suite's two workers share the long cases)."""
 
 import pytest
 
-from .test_walks_ties import assert_named_from_three_walks
+from .verdicts import assert_named_from_three_walks
 
 
 @pytest.mark.slow

@@ -16,7 +16,7 @@ from toywalk.tracking.angles import (
 )
 from toywalk.tracking.joint import fit_walker
 
-from .test_track_joint import ANGLES, compass_scene, start
+from .scenes import COMPASS_ANGLES, compass_scene, start_near
 
 NAMES = ("steer", "lean", "pitch_left", "pitch_right")
 #: corner noise of each marker of compass-3d's default layout (pixels): the lower flags (ids 1, 3)
@@ -46,7 +46,7 @@ def setup():
 @pytest.fixture(scope="module")
 def fits(setup):
     camera, r_ramp, truth, corners = setup
-    return [fit_walker(camera, _labelled(corners, k), start(truth), hip_width=0.1) for k in range(FITS)]
+    return [fit_walker(camera, _labelled(corners, k), start_near(truth), hip_width=0.1) for k in range(FITS)]
 
 
 def test_each_markers_sd_is_recovered(fits):
@@ -64,7 +64,7 @@ def _z_rms(fits, r_ramp, marker_sd, pixel_sd):
     z = []
     for pose in fits:
         values, sd = walker_angles_with_sd(r_ramp, pose, pixel_sd, marker_sd=marker_sd, scale=1.0)
-        z.append([(values[n] - a) / sd[n] for n, a in zip(NAMES, ANGLES, strict=True)])
+        z.append([(values[n] - a) / sd[n] for n, a in zip(NAMES, COMPASS_ANGLES, strict=True)])
     return np.sqrt(np.mean(np.square(z), axis=0))
 
 
@@ -83,7 +83,7 @@ def test_a_leg_on_its_precise_flag_alone_is_not_overstated(setup):
     0.69 on these draws (an RMS of 300 scatters by about 0.03; the bound 0.8 is 3.7 of those
     away)."""
     camera, r_ramp, truth, corners = setup
-    fits = [fit_walker(camera, _labelled(corners, k, ids={0, 2, 3}), start(truth), hip_width=0.1)
+    fits = [fit_walker(camera, _labelled(corners, k, ids={0, 2, 3}), start_near(truth), hip_width=0.1)
             for k in range(FITS)]
     own = _z_rms(fits, r_ramp, SIGMA, 0.2)
     np.testing.assert_allclose(own, 1.0, atol=0.15)  # as above

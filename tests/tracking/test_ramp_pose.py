@@ -20,8 +20,8 @@ from toywalk.tracking.ramp import CHECK_FLOOR, RampPoseError, ramp_difference
 from toywalk.tracking.track import track_frames
 
 from ..conftest import DATA
+from .scenes import NAMES, TOY, motion
 from .synthetic import TOYWALK, render_walker_frame, walker_scene_camera
-from .test_track import NAMES, PARAMS, motion
 
 FPS = 60.0
 
@@ -42,13 +42,13 @@ def _lens(camera: Camera) -> Camera:
 def clip():
     """Eight frames of the synthetic walker with the ramp markers in view (640x360)."""
     camera = walker_scene_camera(640, 360)
-    layout = default_layout(PARAMS)
+    layout = default_layout(TOY)
     rng = np.random.default_rng(21)
     times = np.arange(8) / FPS
     frames, truth = [], []
     for t in times:
         angles, contact = motion(t)
-        frames.append(render_walker_frame(camera, layout, PARAMS, angles, "L", contact, rng=rng, ss=2)[0])
+        frames.append(render_walker_frame(camera, layout, TOY, angles, "L", contact, rng=rng, ss=2)[0])
         truth.append(angles)
     return camera, layout, times, frames, np.array(truth)
 
@@ -137,7 +137,7 @@ def test_a_moving_camera_gets_each_frames_own_ramp_pose():
     (a hand-held following shot): each frame's ramp pose is measured, and a camera file's fixed
     pose (the first frame's) is refused: it is half a degree off in steer on the median frame."""
     base = walker_scene_camera(640, 360)
-    layout = default_layout(PARAMS)
+    layout = default_layout(TOY)
     rng = np.random.default_rng(8)
     rot = cv2.Rodrigues(base.ramp_pose[0].reshape(3, 1))[0]
     frames, truth, times = [], [], np.arange(6) / FPS
@@ -146,7 +146,7 @@ def test_a_moving_camera_gets_each_frames_own_ramp_pose():
                                                     base.ramp_pose[1] - rot @ [0.03 * k, 0.0, 0.0]))
         moved = _turned(slid, [0.0, 0.0, math.radians(0.2 * k)])
         angles, contact = motion(t)
-        frames.append(render_walker_frame(moved, layout, PARAMS, angles, "L", contact, rng=rng, ss=2)[0])
+        frames.append(render_walker_frame(moved, layout, TOY, angles, "L", contact, rng=rng, ss=2)[0])
         truth.append(angles)
     result = track_frames(zip(times, frames, strict=True), _lens(base), layout)
     assert result.ramp["source"].startswith("ramp markers, each frame's own pose in 6 of 6 frames")

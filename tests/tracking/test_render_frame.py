@@ -19,8 +19,8 @@ from toywalk.tracking.render import Filming, RenderOptions, default_filming, ren
 from toywalk.tracking.scene import Scene, default_camera_for, look_at
 from toywalk.tracking.track import track_video
 
+from .scenes import TOY  # the toy-sized walker, 15 cm legs
 from .synthetic import TOYWALK
-from .test_track import PARAMS  # the toy-sized walker, 15 cm legs
 
 NAMES = ("lean", "steer", "pitch_left", "pitch_right")
 
@@ -50,11 +50,11 @@ def _frame_poses(camera, path, times):
 def test_a_short_walk_keeps_the_default_camera():
     """A walk of a few strides stays in the corridor the default camera was placed for: the
     camera is the one of default_camera_for (and so data/camera/default.json for compass-3d)."""
-    camera, path, layout = default_filming(_walk(0.0, 0.2, 1.0), PARAMS, 640, 360)
+    camera, path, layout = default_filming(_walk(0.0, 0.2, 1.0), TOY, 640, 360)
     assert path is None
-    expected = default_camera_for(PARAMS, 640, 360)
+    expected = default_camera_for(TOY, 640, 360)
     np.testing.assert_array_equal(np.concatenate(camera.ramp_pose), np.concatenate(expected.ramp_pose))
-    assert layout.to_dict() == default_layout(PARAMS).to_dict()
+    assert layout.to_dict() == default_layout(TOY).to_dict()
 
 
 @pytest.mark.parametrize("stop, follows", [(0.4, False), (1.4, True)])
@@ -64,9 +64,9 @@ def test_the_default_camera_frames_the_walk_it_is_given(stop, follows):
     every vertex is in the image in every frame, and at least six ramp markers are (three of
     each row in the default framing: enough for the ramp pose in every frame)."""
     table = _walk(0.0, stop, 6.0)
-    camera, path, layout = default_filming(table, PARAMS, 640, 360, RenderOptions(fps=10))
+    camera, path, layout = default_filming(table, TOY, 640, 360, RenderOptions(fps=10))
     assert (path is not None) == follows
-    film = Filming(table, PARAMS, camera, layout, RenderOptions(fps=10), 0, path)
+    film = Filming(table, TOY, camera, layout, RenderOptions(fps=10), 0, path)
     ramp = np.concatenate([marker_corners(m) for m in layout.on("ramp")])
     for t, pose in zip(film.times, _frame_poses(film.camera, path, film.times), strict=True):
         assert _inside(camera, pose, film.scene.walker_points(film.motion.state(t))).all(), t
@@ -84,8 +84,8 @@ def test_a_following_camera_draws_the_ramp_from_where_it_stands(monkeypatch):
     0.013 deg and 0.2 mm; the limits, 0.05 deg and 1 mm, are about three times the pose's own
     scatter from corner noise at 1280x720, measured over eleven such frames)."""
     table = _walk(0.0, 1.4, 6.0)
-    camera, path, layout = default_filming(table, PARAMS)
-    film = Filming(table, PARAMS, camera, layout, RenderOptions(fps=10, start=2.8, duration=0.2), 0, path)
+    camera, path, layout = default_filming(table, TOY)
+    film = Filming(table, TOY, camera, layout, RenderOptions(fps=10, start=2.8, duration=0.2), 0, path)
     cast = []
     real = Scene._static_layers
     monkeypatch.setattr(Scene, "_static_layers", lambda self, *a, **k: cast.append(1) or real(self, *a, **k))
@@ -114,8 +114,8 @@ def test_a_moved_cameras_ramp_is_composited_as_numpy_would():
     from toywalk.tracking.scene import _gradient
 
     table = _walk(0.0, 1.4, 6.0)
-    camera, path, layout = default_filming(table, PARAMS)
-    film = Filming(table, PARAMS, camera, layout, RenderOptions(fps=10, start=2.8, duration=0.2), 0, path)
+    camera, path, layout = default_filming(table, TOY)
+    film = Filming(table, TOY, camera, layout, RenderOptions(fps=10, start=2.8, duration=0.2), 0, path)
     scene = film.scene
     for t in (2.85, 2.9):  # not 2.8, the pose the scene was drawn for
         scene.set_pose(*path.pose(t))
@@ -145,9 +145,9 @@ def test_a_walker_passing_behind_a_given_camera_renders():
     the other (this raised a broadcasting error while counting the renders to average)."""
     table = _walk(0.0, 0.6, 1.0)
     pose = look_at([0.3, -0.02, 0.08], [0.0, 0.0, 0.05], np.array([0.0, 0.0, 1.0]))
-    base = default_camera_for(PARAMS, 320, 180)
+    base = default_camera_for(TOY, 320, 180)
     camera = type(base)(base.width, base.height, base.matrix, base.distortion, ramp_pose=pose)
-    film = Filming(table, PARAMS, camera, default_layout(PARAMS), RenderOptions.preset(1, fps=20), 0)
+    film = Filming(table, TOY, camera, default_layout(TOY), RenderOptions.preset(1, fps=20), 0)
     scene: Scene = film.scene
     half = 0.5 * film.options.exposure / film.options.fps  # the shutter's half-open time (s)
     sizes, crossing = set(), []
@@ -169,11 +169,11 @@ def leaving(tmp_path_factory):
     while the walker goes on, at a toy's 0.25 m/s, past its end, and what the tracker made of it."""
     folder = tmp_path_factory.mktemp("leaving")
     table = _walk(0.1, 0.9, 3.2)
-    camera, layout = default_camera_for(PARAMS), default_layout(PARAMS)
-    result = render(table, PARAMS, camera, layout, RenderOptions.preset(0, fps=15), folder / "v.mp4", rng=3)
+    camera, layout = default_camera_for(TOY), default_layout(TOY)
+    result = render(table, TOY, camera, layout, RenderOptions.preset(0, fps=15), folder / "v.mp4", rng=3)
     tracked, _ = track_video(folder / "v.mp4", load_camera(result.paths["camera"]),
                              load_layout(result.paths["markers"]))
-    film = Filming(table, PARAMS, camera, layout, RenderOptions(fps=15), 0)
+    film = Filming(table, TOY, camera, layout, RenderOptions(fps=15), 0)
     in_view = np.array([_inside(camera, camera.ramp_pose, film.scene.walker_points(film.motion.state(t)))
                         .mean() for t in film.times])
     truth = np.array([film.motion.angles(t) for t in film.times])
@@ -191,8 +191,8 @@ def test_the_render_says_where_the_walker_leaves_the_view(leaving, tmp_path):
     assert f"in {partly} of {len(in_view)} frames" in line and f"none of it in {gone})" in line
     table = _walk(0.1, 0.9, 3.2)
     write_trajectory(table, tmp_path / "walk.csv")
-    save_params(PARAMS, tmp_path / "walker.toml")
-    save_camera(default_camera_for(PARAMS), tmp_path / "camera.json")
+    save_params(TOY, tmp_path / "walker.toml")
+    save_camera(default_camera_for(TOY), tmp_path / "camera.json")
     common = ["render", str(tmp_path / "walk.csv"), "--params", str(tmp_path / "walker.toml"),
               "--noise", "0", "--fps", "5", "--size", "320x180"]
     given = subprocess.run([TOYWALK, *common[:-2], "--camera", str(tmp_path / "camera.json"),

@@ -7,38 +7,27 @@ import subprocess
 import cv2
 import numpy as np
 import pytest
-from toywalk.model.parameters import Params
 from toywalk.model.trajectory import read_trajectory, trajectory_paths
 from toywalk.tracking.camera import Camera, save_camera
 from toywalk.tracking.markers import default_layout, save_layout
 from toywalk.tracking.track import TrackError, track_frames
 
+from .scenes import NAMES, TOY, motion
 from .synthetic import TOYWALK, render_walker_frame, walker_scene_camera
 
-PARAMS = Params(leg_length=0.15, foot_radius=0.03, foot_lateral_radius=0.005, hip_width=0.0,
-                leg_mass=0.05, axle_mass=0.02, com_offset=(-0.005, 0.1, -0.11),
-                inertia=(3e-4, 1e-4, 3e-4, 0.0, 0.0, 0.0), slope=0.0785, gravity=9.81)
-NAMES = ("lean", "steer", "pitch_left", "pitch_right")
 FPS = 60.0
-
-
-def motion(t):
-    """Smooth made-up angles (rad) of a walker rolling down the ramp: (angles, contact)."""
-    w = 2 * np.pi / 0.75  # stride frequency of the toy (rad/s)
-    angles = (0.04 * np.sin(w * t), 0.15 * np.cos(w * t), 0.25 * np.sin(w * t), -0.25 * np.sin(w * t))
-    return angles, (0.1 + 0.2 * t, 0.0)
 
 
 @pytest.fixture(scope="module")
 def scene():
     camera = walker_scene_camera(640, 360)
-    layout = default_layout(PARAMS)
+    layout = default_layout(TOY)
     rng = np.random.default_rng(11)
     times = np.arange(30) / FPS
     frames, truth = [], []
     for t in times:
         angles, contact = motion(t)
-        image, _ = render_walker_frame(camera, layout, PARAMS, angles, "L", contact, rng=rng,
+        image, _ = render_walker_frame(camera, layout, TOY, angles, "L", contact, rng=rng,
                                        bodies_drawn=("left_leg", "right_leg"), ss=2)
         frames.append(image)
         truth.append(angles)
@@ -97,7 +86,7 @@ def test_one_leg_seen(scene):
     frames = []
     for t in times[:6]:
         angles, contact = motion(t)
-        frames.append(render_walker_frame(camera, layout, PARAMS, angles, "L", contact, rng=rng,
+        frames.append(render_walker_frame(camera, layout, TOY, angles, "L", contact, rng=rng,
                                           bodies_drawn=("left_leg",), ss=2)[0])
     result = track_frames(zip(times[:6], frames, strict=True), camera, layout)
     assert np.all(np.isnan(result.raw["pitch_right"]))
@@ -114,7 +103,7 @@ def test_ramp_from_markers(scene):
     frames = []
     for t in times[:5]:
         angles, contact = motion(t)
-        frames.append(render_walker_frame(camera, layout, PARAMS, angles, "L", contact, rng=rng, ss=2)[0])
+        frames.append(render_walker_frame(camera, layout, TOY, angles, "L", contact, rng=rng, ss=2)[0])
     result = track_frames(zip(times[:5], frames, strict=True), free, layout)
     assert result.ramp["source"].startswith("ramp markers, one fixed pose")
     for k, name in enumerate(NAMES):

@@ -3,48 +3,19 @@ from exact and from noisy corners, the analytic Jacobian against finite differen
 model against the leg-by-leg one, the hip width, and the mirror ambiguity that a single marker
 leaves and the other leg removes."""
 
-import cv2
 import numpy as np
 import pytest
 from scipy import stats
-from toywalk.model.kinematics import leg_poses
-from toywalk.model.parameters import Params
 from toywalk.tracking.camera import undistort_pixels
-from toywalk.tracking.joint import _Problem, fit_walker, rot_y, walker_from_legs
-from toywalk.tracking.markers import body_points, default_layout
-from toywalk.tracking.scene import default_camera_for
+from toywalk.tracking.joint import _Problem, fit_walker, rot_y
 from toywalk.tracking.track import walker_angles
 
-PARAMS = Params(leg_length=0.5, foot_radius=0.1, foot_lateral_radius=0.1, hip_width=0.1, leg_mass=1.0,
-                axle_mass=0.5, com_offset=(0.0, 0.02, -0.3), inertia=(0.02, 0.02, 0.01, 0.0, 0.0, 0.0),
-                slope=0.03, gravity=9.81)  # data/params/compass-3d.toml
-ANGLES = (0.2, -0.05, -0.25, 0.3)  # steer, lean, pitch_left, pitch_right (rad)
+from .scenes import COMPASS, COMPASS_ANGLES, compass_scene, start_near
 
 
 @pytest.fixture(scope="module")
 def setup():
     return compass_scene()
-
-
-def compass_scene():
-    """(camera, ramp rotation, true leg poses {foot: (R, hip)}, corners {foot: {id: (object points,
-    pixels)}}) of compass-3d standing at ``ANGLES`` before its default camera."""
-    camera = default_camera_for(PARAMS)
-    layout = default_layout(PARAMS)
-    r_ramp = cv2.Rodrigues(camera.ramp_pose[0].reshape(3, 1))[0]
-    t_ramp = camera.ramp_pose[1].reshape(3)
-    legs = leg_poses(PARAMS, *ANGLES, "R", (0.2, 0.0))
-    corners = {}
-    truth = {}
-    for name, foot in (("left_leg", "L"), ("right_leg", "R")):
-        rot = r_ramp @ legs.rotation[foot]
-        hip = r_ramp @ legs.hip[foot] + t_ramp
-        truth[foot] = (rot, hip)
-        pts = body_points(layout, name)
-        corners[foot] = {i: (p, cv2.projectPoints(p, cv2.Rodrigues(rot)[0], hip, camera.matrix,
-                                                  camera.distortion)[0].reshape(-1, 2))
-                         for i, p in pts.items()}
-    return camera, r_ramp, truth, corners
 
 
 def observations(corners, ids=None, noise=0.0, rng=None):
@@ -59,34 +30,27 @@ def observations(corners, ids=None, noise=0.0, rng=None):
     return out
 
 
-def start(truth, tilt=0.03):
-    """The true pose disturbed by a few degrees."""
-    kick = cv2.Rodrigues(np.array([tilt, -tilt, 0.5 * tilt]))[0]
-    legs = {f: (kick @ r, h + 0.01) for f, (r, h) in truth.items()}
-    return walker_from_legs(legs, 0.08, prefer="R")
-
-
 def test_exact_corners_give_the_true_angles(setup):
     camera, r_ramp, truth, corners = setup
-    pose = fit_walker(camera, observations(corners), start(truth), hip_width=0.1)
+    pose = fit_walker(camera, observations(corners), start_near(truth), hip_width=0.1)
     # exact projections: the fit's residual is round-off (undistortion iterated to 1e-12)
     assert pose.rms < 1e-6
     lean, steer, pl, pr = walker_angles(r_ramp, pose)
-    np.testing.assert_allclose([steer, lean, pl, pr], ANGLES, atol=1e-8)
+    np.testing.assert_allclose([steer, lean, pl, pr], COMPASS_ANGLES, atol=1e-8)
     np.testing.assert_allclose(pose.hip_point("L"), truth["L"][1], atol=1e-8)  # m
 
 
 def test_hip_width_is_estimated(setup):
     camera, _, truth, corners = setup
-    pose = fit_walker(camera, observations(corners), start(truth), hip_width=0.05, fit_hip_width=True)
+    pose = fit_walker(camera, observations(corners), start_near(truth), hip_width=0.05, fit_hip_width=True)
     assert "hip_width" in pose.names
-    np.testing.assert_allclose(pose.hip_width, PARAMS.hip_width, atol=1e-8)  # exact data
+    np.testing.assert_allclose(pose.hip_width, COMPASS.hip_width, atol=1e-8)  # exact data
 
 
 def test_jacobian_matches_finite_differences(setup):
     camera, _, truth, corners = setup
     problem = _Problem(camera, {f: o[:2] for f, o in observations(corners).items()}, fit_width=True)
-    axle, pitch, hip = start(truth)
+    axle, pitch, hip = start_near(truth)
     r0, jac = problem.evaluate(axle, pitch, hip, 0.1)
     h = 1e-7
     for j in range(len(problem.names)):
@@ -106,10 +70,10 @@ def test_noise_gives_honest_covariance(setup):
     from toywalk.tracking.track import walker_angles_with_sd
 
     for k in range(200):
-        pose = fit_walker(camera, observations(corners, noise=sigma, rng=k), start(truth), hip_width=0.1)
+        pose = fit_walker(camera, observations(corners, noise=sigma, rng=k), start_near(truth), hip_width=0.1)
         values, sd = walker_angles_with_sd(r_ramp, pose, sigma)
         errors.append([values[n] - a for n, a in zip(("steer", "lean", "pitch_left", "pitch_right"),
-                                                       ANGLES, strict=True)])
+                                                       COMPASS_ANGLES, strict=True)])
         sds.append([sd[n] for n in ("steer", "lean", "pitch_left", "pitch_right")])
         dofs.add(pose.dof)
     z = np.array(errors) / np.array(sds)
@@ -132,11 +96,11 @@ def test_one_marker_leg_is_pinned_by_the_other(setup):
     start 10 degrees off."""
     camera, r_ramp, truth, corners = setup
     obs = observations(corners, ids={0, 2, 3})  # left leg: its upper flag only
-    axle, pitch, hip = start(truth)
+    axle, pitch, hip = start_near(truth)
     pitch = {**pitch, "L": pitch["L"] + 0.17}
     pose = fit_walker(camera, obs, (axle, pitch, hip), hip_width=0.1)
     lean, steer, pl, pr = walker_angles(r_ramp, pose)
-    np.testing.assert_allclose([steer, lean, pl, pr], ANGLES, atol=1e-7)
+    np.testing.assert_allclose([steer, lean, pl, pr], COMPASS_ANGLES, atol=1e-7)
 
 
 def test_rot_y_is_a_pitch():
@@ -187,7 +151,7 @@ def test_stacked_model_matches_leg_by_leg(setup, ids, fit_width):
     obs = {f: o[:2] for f, o in observations(corners, ids=ids).items()}
     problem = _Problem(camera, obs, fit_width)
     assert problem.names[-1:] == (("hip_width",) if fit_width and len(obs) == 2 else ("hz",))
-    axle, pitch, hip = start(truth)
+    axle, pitch, hip = start_near(truth)
     r, jac = problem.evaluate(axle, pitch, hip, 0.1)
     r_ref, jac_ref = _reference_evaluate(camera, obs, problem.names, axle, pitch, hip, 0.1)
     # the same sums in another order: agreement to rounding (|J| ~ 1e3 px per unit, r ~ 10 px)
