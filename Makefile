@@ -44,6 +44,7 @@ bench: libraries
 	$(PY) benchmarks/sample_speed.py
 	$(PY) benchmarks/diagnose_speed.py
 	$(PY) benchmarks/transient_speed.py
+	$(PY) benchmarks/fit_speed.py
 	$(PY) benchmarks/process_start.py
 
 lint: $(STAMP)

@@ -17,8 +17,19 @@ from pathlib import Path
 import numpy as np
 from toywalk.model.files import software_version as _version
 
-__all__ = ["main"]
+__all__ = ["PROGRESS", "main", "say"]
 
+#: How a progress line on stderr starts (every command's stages; the robustness suite tells them
+#: from error lines by it).
+PROGRESS = "... "
+
+
+def say(message: str) -> None:
+    """One progress line on stderr, flushed at once, whether stderr is a terminal, a file or a
+    pipe: a stage that takes more than a few seconds says what it does before it starts, so that
+    a log shows where a long run is (a progress bar, which redraws its line, only in a
+    terminal)."""
+    print(f"{PROGRESS}{message}", file=sys.stderr, flush=True)
 
 
 class CommandError(Exception):

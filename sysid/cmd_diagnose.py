@@ -84,7 +84,7 @@ def cmd_diagnose(args) -> int:
         model = args.model
         if model == "auto":
             _say("periodicity test (is the walk on the model's limit cycle?)")
-            model = periodicity_test(table, params, free, check_jacobian=False).chosen.model
+            model = periodicity_test(table, params, free, check_jacobian=False, progress=_say).chosen.model
         result = diagnose(table, params, free=free, effects=_split(args.effects),
                           parameters=_split(args.parameters), alpha=alpha, model=model, progress=_say,
                           workers=workers, scheduler=args.scheduler)
@@ -130,10 +130,11 @@ def _split(text):
 
 
 def _say(message: str) -> None:
-    """A progress line on stderr."""
-    import sys
+    """A progress line on stderr, flushed, to a terminal, file or pipe alike
+    (:func:`toywalk.sysid.cli.say`)."""
+    from toywalk.sysid.cli import say
 
-    print(f"... {message}", file=sys.stderr, flush=True)
+    say(message)
 
 
 def _alpha(args) -> float:
@@ -213,7 +214,8 @@ def _walks(args, out) -> int:
             chosen = []
             for k, (table, walker) in enumerate(zip(tables, params, strict=True), start=1):
                 _say(f"periodicity test of walk {k} (is it on the model's limit cycle?)")
-                chosen.append(periodicity_test(table, walker, free, check_jacobian=False).chosen.model)
+                chosen.append(periodicity_test(table, walker, free, check_jacobian=False,
+                                               progress=_say).chosen.model)
             model = "transient" if "transient" in chosen else "periodic"
         result = diagnose_walks(tables, params, free=free, effects=_split(args.effects),
                                 parameters=_split(args.parameters), alpha=alpha, model=model,

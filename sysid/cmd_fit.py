@@ -5,6 +5,12 @@ free start, and the periodicity test (:func:`toywalk.sysid.fit.periodicity_test`
 released off its cycle fitted as a gait gives biased parameters. ``--model periodic`` or
 ``transient`` fits one model only.
 
+Whatever takes more than a few seconds says one line on stderr before it starts, flushed, whether
+stderr is a terminal, a file or a pipe (:func:`toywalk.sysid.cli.say`): under ``--model auto``
+each of the periodicity test's fits and the chosen fit (``... the transient model, on its own heel
+strikes``), with ``--model`` each stage of the one fit, with ``--multistart`` each start. A long
+walk's default fit takes a minute or more (60 steps off its cycle: 56 s).
+
 ``--multistart`` fits from the user's parameters and from one start per shipped parameter set
 (:func:`toywalk.sysid.multistart.multi_start`), writes the best fit with a ``multistart`` block
 (every run and the distinct optima), and says whether the starts agree.
@@ -53,8 +59,8 @@ def register(subparsers) -> None:
 def cmd_fit(args) -> int:
     from toywalk.model.files import atomic_write_json
     from toywalk.model.trajectory import read_trajectory
-    from toywalk.sysid.cli import CommandError, _load, _version, output_path
-    from toywalk.sysid.fit import CONTACT_KEYS, FitError, _fit_line, fit, periodicity_test
+    from toywalk.sysid.cli import CommandError, _load, _version, output_path, say
+    from toywalk.sysid.fit import CONTACT_KEYS, FitError, fit, periodicity_test
 
     out = output_path(args.out, (".json",))
     if args.intervals is not None and args.intervals < 4:
@@ -78,7 +84,6 @@ def cmd_fit(args) -> int:
     options = dict(offsets=not args.no_offsets, n_intervals=args.intervals, priors=priors,
                    strikes=args.strikes)
     test = starts = None
-    say = _progress()
     try:
         if args.multistart is not None:
             starts = _multi_start(table, params, free, args, options)
@@ -89,8 +94,7 @@ def cmd_fit(args) -> int:
         elif starts is not None:
             result = starts.best
         else:
-            say(_fit_line(args.model, args.strikes))
-            result = fit(table, params, free, model=args.model, **options)
+            result = fit(table, params, free, model=args.model, progress=say, **options)
     except FitError as err:
         raise CommandError(str(err)) from err
     report = result.to_json()
@@ -132,21 +136,11 @@ def cmd_fit(args) -> int:
     return 0
 
 
-def _progress():
-    """A line on stderr before each fit when a person watches (a terminal): a long walk's fits
-    take minutes (60 steps of the stable toy: 1 minute periodic, 3 by default with the periodicity
-    test).
-    Nothing when stderr is a file or a pipe, so that scripts see only the command's own output."""
-    if not sys.stderr.isatty():
-        return lambda _msg: None
-    return lambda msg: print(f"toywalk fit: {msg} ...", file=sys.stderr, flush=True)
-
-
 def _multi_start(table, params, free, args, options):
     """The multi-start fits (periodic under ``--model auto``), one line per start and the verdict."""
     from pathlib import Path
 
-    from toywalk.sysid.cli import CommandError
+    from toywalk.sysid.cli import CommandError, say
     from toywalk.sysid.multistart import multi_start
 
     folder = Path(args.multistart) if args.multistart else None
@@ -155,7 +149,7 @@ def _multi_start(table, params, free, args, options):
     model = "periodic" if args.model == "auto" else args.model
     # The Jacobian cross-check is the chosen fit's: under --model auto the periodicity test refits.
     result = multi_start(table, params, free, starts=folder, model=model,
-                         check_jacobian=args.model != "auto", **options)
+                         check_jacobian=args.model != "auto", progress=say, **options)
     for k, run in enumerate(result.runs):
         if run["status"] == "skipped":
             print(f"start {k + 1} ({run['source']}): skipped: {run['reason']}")

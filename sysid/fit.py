@@ -449,7 +449,7 @@ def fit(table: TrajectoryTable, params: Params, free, *, model: str = "periodic"
         offsets: bool = True, n_intervals: int | None = None, degree: int | None = None, z_guess=None,
         max_iter: int = 500, check_jacobian: bool = True, priors: dict | None = None,
         noise_sd: dict | None = None, strikes: str = "model",
-        warm: FitResult | None = None) -> FitResult:
+        warm: FitResult | None = None, progress=None) -> FitResult:
     """Fit ``free`` parameters of ``params`` to the measured walk ``table``.
 
     Parameters
@@ -494,6 +494,11 @@ def fit(table: TrajectoryTable, params: Params, free, *, model: str = "periodic"
         A fit of the same walk and model to continue from (its gait, nuisances and free
         parameters; ``params`` should hold its estimates), with more free parameters perhaps:
         the solver starts there and skips the first, aligned stage.
+    progress : callable, optional
+        Called with one line of text before each stage (a long walk's stages take tens of
+        seconds each: the 60-step transient fit of ``benchmarks/fit_speed.py`` takes about a
+        minute): first the fit (its model, heel strikes and steps), once the request and the
+        data have been checked, then each solve and the standard errors.
 
     Raises
     ------
@@ -501,9 +506,10 @@ def fit(table: TrajectoryTable, params: Params, free, *, model: str = "periodic"
         Bad names, unusable measurements or no starting gait (the message says which).
     """
     clock = time.perf_counter()
+    say = progress or (lambda _msg: None)
     problem, w0 = _setup(table, params, free, model=model, offsets=offsets, n_intervals=n_intervals,
                          degree=degree, z_guess=z_guess, max_iter=max_iter,
-                         check_jacobian=check_jacobian, priors=priors, strikes=strikes)
+                         check_jacobian=check_jacobian, priors=priors, strikes=strikes, say=say)
     obs, pth = problem.obs, problem.path
     sigma, source, passes = obs.sd.copy(), "file", 1
     if noise_sd is not None:
@@ -515,12 +521,16 @@ def fit(table: TrajectoryTable, params: Params, free, *, model: str = "periodic"
     x0 = problem.start(w0) if warm is None else _continued(problem, w0, warm)
     first_aligned, x_start, aligned = None, x0, warm is None
     for k in range(passes):
-        sol, stats, aligned_rms = problem.solve(x0, np.r_[sigma, sigma_c], aligned_first=aligned)
+        solving = say if passes == 1 else (lambda msg, k=k: say(
+            f"pass {k + 1} of {passes}{' (the noise SDs from the residuals)' if k else ''}: {msg}"))
+        sol, stats, aligned_rms = problem.solve(x0, np.r_[sigma, sigma_c], aligned_first=aligned,
+                                                progress=solving)
         if k > 0 and not stats["success"]:
             # A later pass (new noise weights) started from the converged earlier one can fail
             # where the same problem from the original start converges (measured: IPOPT's
             # restoration failed after 9 iterations from the first pass's solution of a
             # stable-toy walk with spin arrest 0.1, which converges in 9 from the start).
+            solving(f"again from the start ({stats['return_status']} from the pass before)")
             sol, stats, aligned_rms = problem.solve(x_start, np.r_[sigma, sigma_c],
                                                     aligned_first=warm is None)
         x0 = sol
@@ -539,27 +549,24 @@ def fit(table: TrajectoryTable, params: Params, free, *, model: str = "periodic"
                 sigma = _sigma_from(problem.residual_rms(sol), obs)
             if source_c == "estimated from residuals":
                 sigma_c = _contact_sigma(pth, problem.contact_rms(sol, floor=_CONTACT_SD_FLOOR))[0]
+    checked = (f", checked by finite differences ({2 * len(problem.free)} re-solves of the walk)"
+               if problem.check_jacobian and problem.free else "")
+    say(f"standard errors{checked}, and the fitted walker's gait")
     result = problem.result(sol, stats, np.r_[sigma, sigma_c], source, source_c, first_aligned)
     result.seconds = time.perf_counter() - clock
     return result
 
 
 def _setup(table: TrajectoryTable, params: Params, free, *, model, offsets, n_intervals, degree,
-           z_guess, max_iter, check_jacobian, priors, strikes, w_start=None):
+           z_guess, max_iter, check_jacobian, priors, strikes, w_start=None, say=None):
     """The fit's NLP (:class:`_Problem`) and a start ``w0`` on the BVP (``w_start`` when given,
-    else the starting gait solved on the BVP)."""
-    if not isinstance(params, Params):
-        raise TypeError(f"params must be a Params, got {type(params).__name__}")
-    free = _check_free(params, free)
-    priors = _check_priors(priors or {}, free, params)
+    else the starting gait solved on the BVP); ``say`` is given the fit's line once the request
+    and the data are checked, before the starting gait is searched and the NLP built."""
+    free, priors, obs = _checked(table, params, free, priors, strikes)
     if model not in MODELS:
         raise FitError(f"model must be one of {', '.join(MODELS)}, got {model!r}")
-    if strikes not in ("model", "measured"):
-        raise FitError(f"strikes must be 'model' or 'measured', got {strikes!r}")
-    try:
-        obs = observations(table)
-    except MeasurementError as err:
-        raise FitError(str(err)) from err
+    if say is not None:
+        say(f"{_fit_line(model, strikes)}, {obs.n_steps} steps")
     period = gait_period(params, free)
     walker, gait = _start(params, period, free, z_guess)
     planar = walker.planar
@@ -585,6 +592,23 @@ def _setup(table: TrajectoryTable, params: Params, free, *, model, offsets, n_in
     problem.options = {"model": model, "offsets": offsets, "n_intervals": n_intervals,
                        "degree": degree, "strikes": strikes, "max_iter": max_iter}
     return problem, w0
+
+
+def _checked(table: TrajectoryTable, params: Params, free, priors,
+             strikes) -> tuple[list, dict, Observations]:
+    """The request and the data checked, before any fit says a line or searches a gait: the free
+    names, the priors and the walk's observations (:class:`FitError` naming what is wrong)."""
+    if not isinstance(params, Params):
+        raise TypeError(f"params must be a Params, got {type(params).__name__}")
+    free = _check_free(params, free)
+    priors = _check_priors(priors or {}, free, params)
+    if strikes not in ("model", "measured"):
+        raise FitError(f"strikes must be 'model' or 'measured', got {strikes!r}")
+    try:
+        obs = observations(table)
+    except MeasurementError as err:
+        raise FitError(str(err)) from err
+    return free, priors, obs
 
 
 def _contact_sigma(pth: Path, noise_sd: dict | None) -> tuple[np.ndarray, str]:
@@ -822,17 +846,19 @@ class _Problem:
             p[follower] = p[leader]
         return p
 
-    def solve(self, x0: np.ndarray, sigma: np.ndarray, aligned_first: bool = True):
+    def solve(self, x0: np.ndarray, sigma: np.ndarray, aligned_first: bool = True, progress=None):
         """Aligned on the measured strikes (time offset held at 0), then, unless the fit stays
         there (``strikes="measured"``), on the model's strikes from that solution, through the
         blends of :data:`_STAGE_PATH` (each solve from the last; a failed one ends the path with
         its status); from a start already near the model's strikes (``aligned_first`` False),
-        the second stage only.
+        the second stage only. ``progress`` is called with a line before each stage.
         Returns the solution, IPOPT's statistics, and the angle residuals' RMS per signal at the
         aligned stage's solution when the model's strikes follow it (else None)."""
+        say = progress or (lambda _msg: None)
         sol = {"x": x0}
         aligned_rms = None
         if aligned_first or self.stage == 0.0:
+            say("aligned on the measured heel strikes")
             lbx, ubx = self.lbx.copy(), self.ubx.copy()
             lbx[-1] = ubx[-1] = 0.0
             sol = self.solver(x0=x0, p=np.r_[1.0 / sigma, 0.0], lbx=lbx, ubx=ubx, lbg=self.lbg,
@@ -840,6 +866,8 @@ class _Problem:
             if self.stage == 1.0 and self.solver.stats()["success"]:
                 aligned_rms = self.residual_rms(np.array(sol["x"]).ravel(), stage=0.0)
         if self.stage == 1.0 and (not aligned_first or self.solver.stats()["success"]):
+            say("on the model's heel strikes" + (f", in {len(_STAGE_PATH)} steps from the aligned "
+                                                 "solution" if aligned_first else ""))
             for stage in _STAGE_PATH if aligned_first else (1.0,):
                 sol = self.solver(x0=np.array(sol["x"]).ravel(), p=np.r_[1.0 / sigma, stage],
                                   lbx=self.lbx, ubx=self.ubx, lbg=self.lbg, ubg=self.ubg)
@@ -939,29 +967,45 @@ class _Problem:
 
     def _resolve(self, x: np.ndarray, theta: np.ndarray) -> np.ndarray | None:
         """The BVP's unknowns at parameters ``theta`` from ``x``'s (a transient's free start held),
-        or None: IPOPT first, then Newton on the equalities in the unknowns that are not held (the
-        square system :meth:`jacobian` differentiates), from IPOPT's solution or, where IPOPT
-        failed, from ``x``. IPOPT alone stopped at once with a restoration failure for a
-        transient's start held, even at the unperturbed parameters where ``x`` satisfies the
-        equalities to 2e-14 (the README's walk, clearing-toy filmed at 120 frames/s, ``fit`` by
-        default): its Jacobian was never checked. Newton from ``x`` converges there in two or
-        three steps. Where IPOPT succeeds, its equalities hold to its tolerance while its unknowns
-        can stand off the root along the BVP's ill-conditioned directions, and a central
-        difference divides that by the step: :data:`_POLISH` Newton steps more land on the root
-        (measured on a 12-step transient fit of stable-toy, foot radius: the check 1.5e-5
-        relative, erratic with the step size, and 4e-9 polished). The result rests on the
-        equalities only, not on the derivatives the check tests."""
+        or None: Newton on the equalities in the unknowns that are not held (the square system
+        :meth:`jacobian` differentiates) from ``x``, which solves them at the fit's parameters, a
+        central difference's step away; only where Newton does not end within the BVP solver's
+        tolerance, IPOPT, then Newton from IPOPT's solution.
+
+        Newton first because IPOPT on this BVP can cost minutes for nothing: on a transient's
+        start held it stopped at once with a restoration failure (the README's walk,
+        clearing-toy filmed at 120 frames/s, ``fit`` by default, even at the unperturbed
+        parameters where ``x`` satisfies the equalities to 2e-14); on a walk off its cycle
+        (tests/sysid/offcycle.py) it did so from 14 steps on, and its one iteration grew with the
+        walk: 25-41 s at 20 steps, 324 s at 60 (23580 unknowns), where the default fit's check
+        makes four such re-solves after a minute of fitting. Newton from ``x`` converges in two or
+        three steps of a sparse LU (under 0.3 s up to 20 steps; benchmarks/fit_speed.py).
+
+        Newton's steps go on :data:`_POLISH` steps past the tolerance: IPOPT's equalities hold to
+        its tolerance while its unknowns can stand off the root along the BVP's ill-conditioned
+        directions, and a central difference divides that by the step (measured on a 12-step
+        transient fit of stable-toy, foot radius: the check 1.5e-5 relative, erratic with the
+        step size, and 4e-9 polished). The result rests on the equalities only, not on the
+        derivatives the check tests."""
         w0, p = x[:self.n_w], self.p_full(theta)
+        w = self._newton(w0.copy(), p, None)
+        if w is not None:
+            return w
         lbx, ubx = np.full(self.n_w, -np.inf), np.full(self.n_w, np.inf)
         lbx[self.start_free] = ubx[self.start_free] = w0[self.start_free]
         sol = self.prob.solver(x0=w0, p=p, lbg=self.prob.lbg, ubg=self.prob.ubg, lbx=lbx, ubx=ubx)
-        solved = bool(self.prob.solver.stats()["success"])
-        w = np.array(sol["x"]).ravel() if solved else w0.copy()
+        if not self.prob.solver.stats()["success"]:
+            return None
+        w = np.array(sol["x"]).ravel()
+        return self._newton(w.copy(), p, w)
+
+    def _newton(self, w: np.ndarray, p: np.ndarray, within: np.ndarray | None) -> np.ndarray | None:
+        """Newton on the BVP's equalities from ``w`` (changed in place) in the unknowns that are
+        not held, :data:`_POLISH` steps past :data:`_NEWTON_TOL`; where the steps do not end
+        within the tolerance, the latest unknowns that were, else ``within`` (unknowns known to
+        be within it, or None)."""
         n_eq = self.prob.n_equalities
         dep = np.setdiff1d(np.arange(self.n_w), self.start_free)
-        # the latest unknowns within the tolerance (IPOPT's, where it succeeded): what stands if
-        # the Newton steps after them do not end within it again
-        within = w.copy() if solved else None
         polish = 0
         for _ in range(_NEWTON_STEPS + _POLISH):
             g = np.array(self.prob.constraints(w, p)).ravel()[:n_eq]
@@ -1325,7 +1369,9 @@ def periodicity_test(table: TrajectoryTable, params: Params, free, *,
     alpha : float
         False-alarm rate, in (0, 1).
     progress : callable, optional
-        Called with one line of text before each of its fits (a long walk's take minutes).
+        Called with one line of text before each of its fits (a long walk's take minutes: the
+        60-step walk of ``benchmarks/fit_speed.py``, off its cycle, one to one and a half minutes),
+        once the request and the data have been checked.
     **options
         Passed to both fits (``offsets``, ``priors``, ``check_jacobian``, ...; not ``model``).
     """
@@ -1334,6 +1380,7 @@ def periodicity_test(table: TrajectoryTable, params: Params, free, *,
         raise FitError(f"alpha must be in (0, 1), got {alpha!r}")
     if "model" in options:
         raise FitError("periodicity_test fits both models: do not pass model")
+    _checked(table, params, free, options.get("priors"), options.get("strikes", "model"))
     # The test compares the models aligned on the measured strikes (the first stage of each
     # fit): a walk off its cycle has no regular strike times for the periodic model's clock,
     # and its fit on the model's strikes can take hundreds of iterations (measured: 500, 8

@@ -50,6 +50,7 @@ from toywalk.model.parameters import ParameterError, Params, load_params
 from toywalk.model.trajectory import TrajectoryTable
 
 from .fit import FitError, FitResult, fit, fit_bounds
+from .measurement import MeasurementError, observations
 
 __all__ = ["DISTINCT_CHI2", "DISTINCT_SE", "DUPLICATE_RTOL", "SHIPPED_PARAMS", "MultiStart", "Start",
            "carried_over", "multi_start", "shipped_starts"]
@@ -271,6 +272,8 @@ def multi_start(table: TrajectoryTable, params: Params, free, *, starts=None,
         ``priors``, ``noise_sd``, ...). ``z_guess`` applies to the user's start only.
         ``check_jacobian`` (default True) is made on the best fit only: on the user's start's run,
         and on the best by a second fit from its estimates when another start wins.
+        ``progress`` (a callable) is given one line before each start's fit, and before the
+        best's second fit, not the stages within each.
 
     Raises
     ------
@@ -291,6 +294,10 @@ def multi_start(table: TrajectoryTable, params: Params, free, *, starts=None,
             params.get(name)
         except ParameterError as err:
             raise FitError(f"cannot fit {name!r}: {err}") from err
+    try:  # unusable data fail every start alike: refused before any start's progress line
+        observations(table)
+    except MeasurementError as err:
+        raise FitError(str(err)) from err
     if starts is None or isinstance(starts, (str, Path)):
         others = shipped_starts(params, free, SHIPPED_PARAMS if starts is None else starts)
     elif isinstance(starts, (Sequence, Mapping)):
@@ -302,6 +309,7 @@ def multi_start(table: TrajectoryTable, params: Params, free, *, starts=None,
     user = Start([USER], _clipped(params, free, {n: params.get(n) for n in free}, notes), notes)
     candidates = _merged([user, *others])
 
+    say = fit_options.pop("progress", None) or (lambda _msg: None)
     check = fit_options.pop("check_jacobian", True)
     z_guess = fit_options.pop("z_guess", None)
     noise_sd = fit_options.pop("noise_sd", None)
@@ -315,6 +323,7 @@ def multi_start(table: TrajectoryTable, params: Params, free, *, starts=None,
         if noise_sd is not None:
             options["noise_sd"] = noise_sd
         clock = time.perf_counter()
+        say(f"multistart: start {k + 1} of {len(candidates)} ({start.source})")
         try:
             result = fit(table, params.replace(**start.values), free, **options)
         except (FitError, ParameterError) as err:
@@ -354,6 +363,8 @@ def multi_start(table: TrajectoryTable, params: Params, free, *, starts=None,
         # from it: started afresh from its parameters alone, the fit has run to IPOPT's cap, as
         # when another start wins by round-off at the same optimum)
         options = dict(fit_options, check_jacobian=True, noise_sd=noise_sd, warm=best)
+        say(f"multistart: the best start's fit ({runs[best_index]['source']}) again, its Jacobian "
+            "checked")
         best = dataclasses.replace(fit(table, best.params, free, **options),
                                    noise_source=noise_source)
     return MultiStart(best, runs, optima, agree, warnings, noise_sd or best.noise_sd,

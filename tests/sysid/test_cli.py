@@ -126,20 +126,6 @@ def test_continue_in_an_effect(tmp_path):
     assert values[0] == 0.0 and values[-1] == 1e-4 and len(values) >= 3
 
 
-def test_fit_says_what_it_fits_to_a_terminal_only(monkeypatch, capsys):
-    """`toywalk fit` names each fit on stderr before it runs, where a person watches (a long
-    walk's take minutes); to a pipe or a file it says nothing, so scripts read only its output."""
-    import sys
-
-    from toywalk.sysid.cmd_fit import _progress
-
-    _progress()("the periodic model")
-    assert capsys.readouterr().err == ""
-    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
-    _progress()("the periodic model")
-    assert capsys.readouterr().err == "toywalk fit: the periodic model ...\n"
-
-
 TOY_SIZED = DATA / "params" / "toy-sized.toml"
 CLEARING_TOY = DATA / "params" / "clearing-toy.toml"
 
