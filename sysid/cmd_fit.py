@@ -57,7 +57,7 @@ def register(subparsers) -> None:
 
 
 def cmd_fit(args) -> int:
-    from toywalk.model.files import atomic_write_json
+    from toywalk.model.files import atomic_write_json, strict_json
     from toywalk.model.trajectory import read_trajectory
     from toywalk.sysid.cli import CommandError, _load, _version, output_path, say
     from toywalk.sysid.fit import CONTACT_KEYS, FitError, fit, periodicity_test
@@ -107,9 +107,14 @@ def cmd_fit(args) -> int:
     print(f"model: {result.model}")
     report["input"] = {"trajectory": str(args.trajectory), "params": str(args.params),
                        "software": _version()}
-    atomic_write_json(out, report)
+    atomic_write_json(out, strict_json(report))  # a standard error not determined is null
     for name in result.names:
-        print(f"{name:<28s} {result.estimates[name]: .6g} +/- {result.std[name]:.2g}")
+        se = result.std[name]
+        print(f"{name:<28s} {result.estimates[name]: .6g} "
+              + (f"+/- {se:.2g}" if math.isfinite(se) else "(not determined by these data)"))
+    if result.undetermined:
+        print(f"not determined: {', '.join(result.undetermined)} (the information is singular along "
+              "a direction they share; no standard error is given; see the warnings)", file=sys.stderr)
     gait = result.gait
     if gait:
         print(f"fitted gait: {gait['map']} map, max |eigenvalue| {gait['max_abs_eigenvalue']:#.4g} "

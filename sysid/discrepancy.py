@@ -438,6 +438,11 @@ def _diagnose(table: TrajectoryTable, params: Params, *, free, effects, paramete
     if not base.success:
         raise DiagnoseError(f"the base model does not fit the walk ({base.status}); "
                             + "; ".join(base.warnings))
+    if set(free) & set(base.undetermined):
+        raise DiagnoseError(f"the {base.model} base fit does not determine "
+                            f"{', '.join(n for n in free if n in base.undetermined)} (its information is "
+                            "singular): free fewer parameters"
+                            + (", or use the periodic model" if base.model == "transient" else ""))
     obs = observations(table)
     noise_note = ""
     if base.noise_source == "estimated from residuals":
@@ -505,6 +510,10 @@ def _diagnose(table: TrajectoryTable, params: Params, *, free, effects, paramete
         name = row["effect"]
         if isinstance(ext, str):
             row.update(fitted=False, reason=ext)
+            continue
+        if name in ext.undetermined:  # no interval, no Bayes factor, never named
+            row.update(fitted=False, reason=f"{name} is not determined by this walk (the fit's "
+                       "information is singular)")
             continue
         extended[name] = ext
         seconds[name] = ext.seconds

@@ -41,7 +41,6 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-import warnings
 from functools import cache, cached_property
 
 import casadi as ca
@@ -108,6 +107,9 @@ _PHASE_BINS = 10
 #: Identifiability: a direction of the free parameters (scaled to unit column norms) whose
 #: singular value is below this fraction of the largest is reported as not determined.
 _NEAR_SINGULAR = 1e-6
+#: A reported unknown whose squared loading on those directions exceeds this (a component of 0.1,
+#: as the warning's combination shows) is not determined: no standard error (NaN).
+_UNDETERMINED_SHARE = 0.01
 #: Newton's re-solve of the BVP for the Jacobian check (``_Problem._resolve``): at most this many
 #: steps, done when every equality is within the BVP solver's own constraint tolerance (1e-12).
 _NEWTON_STEPS, _NEWTON_TOL = 10, 1e-12
@@ -229,6 +231,9 @@ class FitResult:
     exposure_s : float
         The shutter time each sample was read over (s; the trajectory's ``exposure_s``, 0: at its
         time; :func:`toywalk.sysid.measurement.shutter_reads`).
+    undetermined : list of str
+        The estimates the data do not determine (the information singular along a direction they
+        share): their standard errors, covariances and correlations are NaN, never a number.
     """
 
     free: list
@@ -264,6 +269,7 @@ class FitResult:
     n_w: int = dataclasses.field(repr=False, default=0)
     seconds: float = 0.0
     exposure_s: float = 0.0
+    undetermined: list = dataclasses.field(default_factory=list)
 
     def to_json(self) -> dict:
         """JSON-ready dictionary (pipeline.md's fit file: estimates, std, covariance, ...)."""
@@ -279,7 +285,7 @@ class FitResult:
             "chi2": self.chi2, "n_residuals": self.n_residuals,
             "reduced_chi2": self.chi2 / max(self.n_residuals - len(self.names) - self.start_dof, 1),
             "gait": self.gait, "warnings": self.warnings, "jacobian_check": self.jacobian_check,
-            "priors": {n: list(v) for n, v in self.priors.items()},
+            "undetermined": self.undetermined, "priors": {n: list(v) for n, v in self.priors.items()},
             "options": self.options, "params": self.params.to_dict(),
             "units": {"angles": "rad", "durations": "s", "contact positions": "m",
                       "parameters": "SI (pipeline.md)"},
@@ -1071,14 +1077,26 @@ class _Problem:
         norms = np.sqrt(np.maximum(np.diag(info), 1e-300))
         scaled = info / np.outer(norms, norms)
         evals, evecs = np.linalg.eigh(scaled)
-        if len(evals) and evals[0] < _NEAR_SINGULAR * evals[-1]:
-            vec = evecs[:, 0]
+        good = evals >= _NEAR_SINGULAR * evals[-1] if len(evals) else np.zeros(0, bool)
+        null = evecs[:, ~good]
+        if null.shape[1]:
+            vec = null[:, 0]
             combo = " ".join(f"{v:+.2f} {n}" for v, n in zip(vec, names_all, strict=True) if abs(v) > 0.1)
             notes.append(f"not determined by these data: the combination {combo} (scaled) has "
                          f"{math.sqrt(max(evals[0], 0) / evals[-1]):.1e} of the largest singular value")
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            cov = np.linalg.pinv(info)[np.ix_(keep, keep)]
+        # a reported unknown with a share of the near-null directions has no standard error: the
+        # pseudo-inverse would give a number (2e-15 for a foot radius, 2e-25 for an offset, on a
+        # transient fit of an unstable walker), precision the data do not hold
+        loading = np.sum(null**2, axis=1)
+        undetermined = [n for n in names if loading[names_all.index(n)] > _UNDETERMINED_SHARE]
+        # The inverse over the determined directions of the scaled information: a pseudo-inverse
+        # of the unscaled one cuts directions small against the largest (rcond 1e-15) and gives
+        # them no variance at all, where an unstable walker's free start makes the largest 1e30
+        # times the offsets' (their standard errors came out 2e-25 rad on such a transient fit)
+        kept = evecs[:, good]
+        cov = ((kept / evals[good]) @ kept.T / np.outer(norms, norms))[np.ix_(keep, keep)]
+        lost = np.array([n in undetermined for n in names], bool)
+        cov[lost, :] = cov[:, lost] = np.nan
         std_all = np.sqrt(np.maximum(np.diag(cov), 0.0))
         corr = cov / np.outer(np.maximum(std_all, 1e-300), np.maximum(std_all, 1e-300))
         std = dict(zip(names, map(float, std_all), strict=True))
@@ -1147,7 +1165,7 @@ class _Problem:
             model="periodic" if prob.periodic else "transient", initial_state=start, sigma=sigma,
             start_dof=len(self.start_free), contact_source=contact_source, residuals=res,
             model_durations=durations, options=dict(self.options), n_w=self.n_w,
-            aligned_rms=aligned_rms, exposure_s=self.obs.exposure)
+            aligned_rms=aligned_rms, exposure_s=self.obs.exposure, undetermined=undetermined)
 
     def _gait(self, x: np.ndarray, fitted: Params, notes: list) -> dict:
         """The fitted walker's gait: the periodic fit's own, or for a transient the fitted
@@ -1308,6 +1326,10 @@ class PeriodicityTest:
         Whether the periodic fit's residuals change from step to step
         (:func:`toywalk.sysid.residuals.step_dependence`: ``F``, ``dfn``, ``dfd``, ``p``), made
         when the likelihood ratio rejects the periodic model.
+    fallback : bool
+        The periodic model was rejected but the transient fit does not determine the free
+        parameters (:attr:`FitResult.undetermined`): the periodic fit is the one chosen, and the
+        message says so.
     chi2 : dict of str to float
         The chi-square of the test's ``periodic`` and ``transient`` fits (the fit chosen is then
         fitted again as asked, with a chi-square of its own).
@@ -1323,16 +1345,18 @@ class PeriodicityTest:
     message: str
     step_dependence: dict | None = None
     chi2: dict = dataclasses.field(default_factory=dict)
+    fallback: bool = False
 
     @property
     def chosen(self) -> FitResult:
-        """The fit to use: the periodic one unless it is rejected."""
-        return self.transient if self.appropriate is False else self.periodic
+        """The fit to use: the periodic one unless it is rejected (and the transient one
+        determines the free parameters: ``fallback``)."""
+        return self.transient if self.appropriate is False and not self.fallback else self.periodic
 
     def to_json(self) -> dict:
         return {"delta_chi2": self.delta_chi2, "dof": self.dof, "p_value": self.p_value,
                 "alpha": self.alpha, "periodic_appropriate": self.appropriate,
-                "message": self.message, "chosen": self.chosen.model,
+                "message": self.message, "chosen": self.chosen.model, "fallback": self.fallback,
                 "chi2": dict(self.chi2),
                 "step_dependence": None if self.step_dependence is None else
                 {k: self.step_dependence[k] for k in ("F", "dfn", "dfd", "p")}}
@@ -1450,6 +1474,20 @@ def periodicity_test(table: TrajectoryTable, params: Params, free, *,
         message = (f"the walk is not on the model's limit cycle: a free start lowers chi-square by "
                    f"{delta:.4g} on {dof} degrees of freedom (p = {p_value:.2g} < {alpha:g}){repeated}; "
                    "the periodic fit is not appropriate, use the transient one")
+        lost = [n for n in free if n in refit.undetermined]
+        if lost:
+            # A free start that the walk cannot tell from the parameters (an unstable walker's
+            # steps grow from the start by its eigenvalue, 6 a step for the toy-sized one) leaves
+            # them undetermined: the transient fit gives no standard error, and the periodic one,
+            # biased by the walk's departure from its cycle, is the fit that determines them.
+            say(f"the transient model does not determine {', '.join(lost)}: "
+                + _fit_line("periodic", strikes) + " instead")
+            periodic = fit(table, periodic.params, free, model="periodic", strikes=strikes, **final)
+            message += (f"; but the transient fit does not determine {', '.join(lost)} (its "
+                        "information is singular), so the periodic fit is used instead: its estimates "
+                        "carry the bias of a walk off its cycle")
+            return PeriodicityTest(periodic, transient, delta, dof, p_value, alpha, appropriate, message,
+                                   steps, chi2, fallback=True)
     return PeriodicityTest(periodic, transient, delta, dof, p_value, alpha, appropriate, message, steps,
                            chi2)
 

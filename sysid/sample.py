@@ -89,6 +89,10 @@ def posterior_from_fit(report: dict, table: TrajectoryTable) -> tuple[LogPosteri
                               "with --model periodic to sample it")
         params = Params.from_dict(report["params"])
         free = list(report["free"])
+        lost = [n for n in report.get("undetermined", []) if n in free]
+        if lost:
+            raise SampleError(f"the fit does not determine {', '.join(lost)} (its information is "
+                              "singular): free fewer parameters, or fit a walk that determines them")
         estimates = np.array([report["estimates"][n] for n in free], dtype=float)
         names = list(report["names"])
         cov_all = np.array(report["covariance"], dtype=float)

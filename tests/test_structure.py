@@ -337,3 +337,18 @@ def test_the_checks_find_what_they_look_for():
     assert structure.deferred_cycles() == {("p.a", "p.d"): ["p.d", "p.a"]}
     assert set(structure.private) == {("p.b", "p.c", "_hidden"), ("p.c", "p.a", "_inner"),
                                       ("p.d", "p.a", "_late")}
+
+
+def test_the_sysid_package_exports_its_main_names_as_objects_not_modules():
+    """`from toywalk.sysid import diagnose` gives the function, also after every submodule has been
+    imported (a name shared with a submodule would then be the module: fit and sample stay in
+    theirs)."""
+    import types
+
+    import toywalk.sysid as sysid
+    import toywalk.sysid.cli  # noqa: F401  (imports the commands' modules)
+    import toywalk.sysid.walks  # noqa: F401
+
+    for name in sysid.__all__:
+        assert not isinstance(getattr(sysid, name), types.ModuleType), name
+    assert callable(sysid.diagnose) and sysid.Diagnosis.__name__ == "Diagnosis"
