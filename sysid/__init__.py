@@ -19,7 +19,7 @@ The modules: :mod:`~toywalk.sysid.fit`, :mod:`~toywalk.sysid.sample`,
 command line, :mod:`~toywalk.sysid.cli`.
 """
 
-import importlib
+from toywalk.model.exports import lazy_names
 
 #: Each public name and the submodule that defines it.
 _WHERE = {
@@ -49,13 +49,4 @@ _WHERE = {
 __all__ = sorted(_WHERE)
 
 
-def __getattr__(name: str):
-    if name in _WHERE:
-        value = getattr(importlib.import_module(f".{_WHERE[name]}", __name__), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__():
-    return sorted(set(globals()) | set(_WHERE))
+__getattr__, __dir__ = lazy_names(__name__, _WHERE, globals())
