@@ -59,6 +59,7 @@ def register(subparsers) -> None:
 def cmd_fit(args) -> int:
     from toywalk.model.files import atomic_write_json, strict_json
     from toywalk.model.trajectory import read_trajectory
+    from toywalk.model.walker import CLEARANCE_RESOLUTION, describe_scuffs
     from toywalk.sysid.cli import CommandError, _load, _version, output_path, say
     from toywalk.sysid.fit import CONTACT_KEYS, FitError, fit, periodicity_test
 
@@ -117,8 +118,10 @@ def cmd_fit(args) -> int:
               "a direction they share; no standard error is given; see the warnings)", file=sys.stderr)
     gait = result.gait
     if gait:
+        scuffs = describe_scuffs(gait["scuffs"], len(gait["step_times"]), gait["swing_clearance"],
+                                 CLEARANCE_RESOLUTION * result.params.leg_length)
         print(f"fitted gait: {gait['map']} map, max |eigenvalue| {gait['max_abs_eigenvalue']:#.4g} "
-              f"({'stable' if gait['stable'] else 'unstable'})")
+              f"({'stable' if gait['stable'] else 'unstable'})" + (f"; {scuffs}" if scuffs else ""))
     rms = ", ".join(f"{k} {math.degrees(v):.3g} deg" for k, v in result.residual_rms.items()
                     if k not in ("step_duration", "strike_time", *CONTACT_KEYS))
     if CONTACT_KEYS[0] in result.residual_rms:

@@ -1189,7 +1189,11 @@ class _Problem:
         vals = vals[np.argsort(-np.abs(vals))]
         z0 = walker.to_public(np.r_[w[1:1 + prob.n_dyn], np.zeros(walker.lay.nx - prob.n_dyn)])
         times = [float(w[prob.duration_index(j)]) for j in range(prob.phases)]
+        # the swing foot over the cycle, as `toywalk gait` reports it (scuffs before the legs pass)
+        steps = walker.cycle(z0, record=True).steps
+        lowest = min(float(st.swing.minimum) for st in steps)
         return {
+            "scuffs": int(sum(st.scuffs for st in steps)), "swing_clearance": lowest,
             "map": "step" if prob.phases == 1 else "stride",
             "fixed_point": dict(zip(STATE_NAMES, map(float, z0), strict=True)),
             "step_times": times,

@@ -63,6 +63,10 @@ def test_fit_by_default_says_what_is_not_determined_and_uses_the_periodic_model(
     report = json.loads((tmp_path / "f.json").read_text())
     assert report["model"] == "periodic", out.stdout
     assert report["periodicity"]["fallback"] and "does not determine" in report["periodicity"]["message"]
+    # toy-sized's swing foot goes 0.5 mm below the ramp before the legs pass: said as gait says it
+    gait_line = next(line for line in out.stdout.splitlines() if line.startswith("fitted gait"))
+    assert "the swing foot scuffs the ramp before the legs pass, once a step" in gait_line
+    assert report["gait"]["scuffs"] == 1 and report["gait"]["swing_clearance"] < 0
     for name in FREE:  # a periodic fit determines them: a standard error of the walk's order
         se = report["std"][name]
         assert se is not None and se > 1e-9, (name, se)  # the singular transient printed 2.2e-15
