@@ -3,13 +3,17 @@ JSON files with one clear line when they are missing or malformed."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
+import shutil
+import tempfile
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 __all__ = ["DATA_DIR", "atomic_write_json", "atomic_write_text", "read_json_object", "software_version",
-           "strict_json"]
+           "staged_files", "strict_json"]
 
 #: The bundled data (data/README.md): beside the packages in the source tree, and installed with
 #: them as ``toywalk/data`` from a wheel, so the same relative path finds it in both.
@@ -25,6 +29,32 @@ def atomic_write_text(path: str | Path, text: str) -> None:
         os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)
+
+
+@contextlib.contextmanager
+def staged_files(paths: Sequence[str | Path]) -> Iterator[list[Path]]:
+    """Write several files all or nothing: yields, for each of ``paths``, a path of the same name
+    in a hidden folder beside the first, to write there; when the block ends without an error each
+    is renamed into place (those already placed are removed again if a later rename fails). On an
+    error, or an interrupt, nothing is written and the folder is removed: no half-written output.
+    The names must differ (they share the folder); a file the block did not write is an error."""
+    paths = [Path(p) for p in paths]
+    if len({p.name for p in paths}) != len(paths):
+        raise ValueError(f"staged files need distinct names, got {[p.name for p in paths]}")
+    folder = Path(tempfile.mkdtemp(prefix=f".{paths[0].stem}.", dir=paths[0].parent))
+    done: list[Path] = []
+    try:
+        staged = [folder / p.name for p in paths]
+        yield staged
+        for tmp, path in zip(staged, paths, strict=True):
+            os.replace(tmp, path)
+            done.append(path)
+    except BaseException:
+        for path in done:
+            path.unlink(missing_ok=True)
+        raise
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
 
 
 def atomic_write_json(path: str | Path, data) -> None:

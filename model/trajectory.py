@@ -15,10 +15,11 @@ import csv
 import io
 import json
 import math
-import os
 from pathlib import Path
 
 import numpy as np
+
+from .files import staged_files
 
 __all__ = ["EVENT_SD_COLUMNS", "SIGNALS", "TrajectoryError", "TrajectoryTable", "read_trajectory",
            "trajectory_paths", "write_trajectory"]
@@ -77,8 +78,7 @@ def write_trajectory(table: TrajectoryTable, out: str | Path) -> tuple[Path, Pat
     extra = [k for k in table.signals if k not in SIGNALS]
     columns += sorted(k for k in extra if k.endswith("_sd"))
     columns += [k for k in ("contact_x", "contact_y") if k in table.signals]
-    tmps = [p.with_name(f".{p.name}.tmp") for p in paths]
-    try:
+    with staged_files(paths) as tmps:
         with open(tmps[0], "w", newline="") as fh:
             writer = csv.writer(fh)
             writer.writerow(columns)
@@ -103,11 +103,6 @@ def write_trajectory(table: TrajectoryTable, out: str | Path) -> tuple[Path, Pat
         with open(tmps[2], "w") as fh:
             json.dump(table.metadata, fh, indent=2, sort_keys=True, default=_json_default)
             fh.write("\n")
-        for tmp, path in zip(tmps, paths, strict=True):
-            os.replace(tmp, path)
-    finally:
-        for tmp in tmps:
-            tmp.unlink(missing_ok=True)
     return paths
 
 

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 from toywalk.model.files import software_version as _version
+from toywalk.model.files import staged_files
 
 __all__ = ["PROGRESS", "main", "say"]
 
@@ -213,7 +214,6 @@ def _write_branch(branch, out: Path) -> None:
     """Table (CSV), events and status (JSON) and a plot (PNG), each written atomically."""
     import csv
     import io
-    import os
 
     cols, rows = branch.table()
     buf = io.StringIO()
@@ -224,22 +224,11 @@ def _write_branch(branch, out: Path) -> None:
     info = {"parameter": branch.name, "status": branch.status, "message": branch.message,
             "planar": branch.planar, "map": "step" if branch.period == 1 else "stride",
             "events": [{"kind": e.kind, "value": e.value, "detail": e.detail} for e in branch.events]}
-    png = out.with_suffix(".png")
-    files = {out: buf.getvalue(), out.with_suffix(".json"): json.dumps(info, indent=2) + "\n"}
-    tmps = []
-    try:
-        for path, text in files.items():
-            tmp = path.with_name(f".{path.name}.tmp")
-            tmps.append((tmp, path))
-            tmp.write_text(text)
-        tmp_png = png.with_name(f".{png.name}.tmp.png")
-        tmps.append((tmp_png, png))
-        _plot_branch(branch, rows, tmp_png)
-        for tmp, path in tmps:
-            os.replace(tmp, path)
-    finally:
-        for tmp, _ in tmps:
-            tmp.unlink(missing_ok=True)
+    outputs = [out, out.with_suffix(".json"), out.with_suffix(".png")]
+    with staged_files(outputs) as (csv_file, json_file, png):
+        csv_file.write_text(buf.getvalue())
+        json_file.write_text(json.dumps(info, indent=2) + "\n")
+        _plot_branch(branch, rows, png)
 
 
 def _plot_branch(branch, rows, path: Path) -> None:

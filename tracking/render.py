@@ -39,15 +39,13 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import os
-import shutil
-import tempfile
 import time as _time
 from pathlib import Path
 
 import cv2
 import numpy as np
 from toywalk.model.files import software_version as _version
+from toywalk.model.files import staged_files
 from toywalk.model.kinematics import lowest_point
 
 from .camera import Camera, project
@@ -691,99 +689,95 @@ def write_shoot(shoot, table, params, layout: MarkerLayout, paths: dict, *, code
 
     video, options, path, motion, times = paths["video"], shoot.options, shoot.path, shoot.motion, shoot.times
     n = len(times)
-    stage = Path(tempfile.mkdtemp(prefix=f".{video.stem}.", dir=video.parent))
-    staged = {key: stage / p.name for key, p in paths.items()}
     truth_events = paths["truth"].with_name(paths["truth"].stem + ".events.csv")
-    done = []  # final files already in place (removed again if a later step fails)
+    keys = ["truth_events", "truth", "metadata", "camera", "markers", "video"]  # the video last
+    finals = {**paths, "truth_events": truth_events}
     writer = None
-    try:
-        writer = cv2.VideoWriter(str(staged["video"]), cv2.VideoWriter_fourcc(*codec), float(options.fps),
-                                 (lens.width, lens.height))
-        if not writer.isOpened():
-            raise RenderError(f"cannot open a {codec} video writer for {video.name}")
-        truth = np.empty((n, 6))
-        stances = []
-        poses = []  # a moving camera's ramp pose in each frame (rvec, tvec), at the frame's time
-        for k in range(n):
-            writer.write(shoot.frame(k))
-            truth[k, :4], stance, truth[k, 4:] = shoot.truth(k)
-            stances.append(stance)
-            if path is not None:
-                poses.append(np.concatenate(path.pose(float(times[k]))).tolist())
-            if progress is not None:
-                progress(k + 1, n)
-        writer.release()
-        writer = None
-        check = cv2.VideoCapture(str(staged["video"]))
-        ok = check.isOpened()
-        check.release()
-        if not ok or staged["video"].stat().st_size == 0:
-            raise RenderError(f"the {codec} video writer produced no readable file")
-        events = [{"time": te, "foot": f, "x": math.nan, "y": math.nan} for te, f in motion.events
-                  if times[0] <= te <= times[-1]]
-        for ev in table.events:  # keep the contact positions where the trajectory has them
-            for e in events:
-                if abs(e["time"] - float(ev["time"])) < 1e-12:
-                    e["x"], e["y"] = float(ev.get("x", math.nan)), float(ev.get("y", math.nan))
-        blur = options.blur_subframes > 1 and options.exposure > 0
-        meta = {
-            "units": {"time": "s", "angles": "rad", "contact": "m"},
-            "source": {"kind": "render truth", "video": video.name, "trajectory": source,
-                       "trajectory_source": table.metadata.get("source"),
-                       "contact": motion.contact_source,
-                       "interpolation": "PCHIP (angles, left hip point)"},
-            "timestamps": (("frame k shows the trajectory at t0 + k / fps" if options.frame_times is None
-                            else "frame k shows the trajectory at frame_times[k] (given; the video file "
-                                 "is stamped t0 + k / fps)")
-                           + "; with motion blur the shutter is open over t +- exposure / (2 fps)"),
-            "motion_blur": {"renders_per_frame": shoot.subframes.tolist(), "max_step_px": BLUR_STEP_PX}
-            if blur else None,
-            "contact": "the stance foot's lowest point, from the drawn geometry",
-            "video": video.name,
-            "truth": paths["truth"].name,
-            "size": [lens.width, lens.height],
-            "fps": options.fps,
-            "frames": n,
-            "codec": codec,
-            "frame_times": times.tolist(),
-            "params": params_record(params),
-            "camera": lens.to_dict(),
-            "camera_path": None if path is None else {
-                "kind": "moves without turning (tracking.scene.CameraPath)",
-                "frames": "ramp pose (rvec, tvec) in each frame, at the frame's time",
-                "poses": poses},
-            "markers": layout.to_dict(),
-            "options": dataclasses.asdict(options),
-            "seed": int(seed) if isinstance(seed, np.integer) else seed,
-            "occluders": [{"first_frame": a, "frames": b, **p} for a, b, p in shoot.occluders],
-            "gains": shoot.gains.tolist(),
-            "software": _version(),
-        }
-        if renderer is not None:
-            meta["renderer"] = renderer
-        signals = {"lean": truth[:, 0], "steer": truth[:, 1], "pitch_left": truth[:, 2],
-                   "pitch_right": truth[:, 3], "contact_x": truth[:, 4], "contact_y": truth[:, 5]}
-        # the truth's metadata file NAME.json (model.trajectory's naming) is V.json itself
-        written = write_trajectory(TrajectoryTable(times, signals, stances, events, meta), staged["truth"])
-        if written[2] != staged["metadata"]:
-            raise RuntimeError(f"unexpected trajectory metadata name {written[2]}")
-        # a moving camera's lens only: its ramp pose changes from frame to frame
-        lens_file = lens if path is None else dataclasses.replace(lens, ramp_pose=None)
-        staged["camera"].write_text(json.dumps(lens_file.to_dict(), indent=2) + "\n")
-        staged["markers"].write_text(json.dumps(layout.to_dict(), indent=2) + "\n")
-        moves = [(written[1], truth_events),
-                 *((staged[key], paths[key]) for key in ("truth", "metadata", "camera", "markers", "video"))]
-        for a, b in moves:
-            os.replace(a, b)
-            done.append(b)
-    except BaseException:
-        if writer is not None:
+    # all or nothing: staged beside the video, renamed into place when every file is written
+    with staged_files([finals[key] for key in keys]) as staged_list:
+        staged = dict(zip(keys, staged_list, strict=True))
+        try:
+            writer = cv2.VideoWriter(str(staged["video"]), cv2.VideoWriter_fourcc(*codec), float(options.fps),
+                                     (lens.width, lens.height))
+            if not writer.isOpened():
+                raise RenderError(f"cannot open a {codec} video writer for {video.name}")
+            truth = np.empty((n, 6))
+            stances = []
+            poses = []  # a moving camera's ramp pose in each frame (rvec, tvec), at the frame's time
+            for k in range(n):
+                writer.write(shoot.frame(k))
+                truth[k, :4], stance, truth[k, 4:] = shoot.truth(k)
+                stances.append(stance)
+                if path is not None:
+                    poses.append(np.concatenate(path.pose(float(times[k]))).tolist())
+                if progress is not None:
+                    progress(k + 1, n)
             writer.release()
-        for p in done:
-            p.unlink(missing_ok=True)
-        raise
-    finally:
-        shutil.rmtree(stage, ignore_errors=True)
+            writer = None
+            check = cv2.VideoCapture(str(staged["video"]))
+            ok = check.isOpened()
+            check.release()
+            if not ok or staged["video"].stat().st_size == 0:
+                raise RenderError(f"the {codec} video writer produced no readable file")
+            events = [{"time": te, "foot": f, "x": math.nan, "y": math.nan} for te, f in motion.events
+                      if times[0] <= te <= times[-1]]
+            for ev in table.events:  # keep the contact positions where the trajectory has them
+                for e in events:
+                    if abs(e["time"] - float(ev["time"])) < 1e-12:
+                        e["x"], e["y"] = float(ev.get("x", math.nan)), float(ev.get("y", math.nan))
+            blur = options.blur_subframes > 1 and options.exposure > 0
+            meta = {
+                "units": {"time": "s", "angles": "rad", "contact": "m"},
+                "source": {"kind": "render truth", "video": video.name, "trajectory": source,
+                           "trajectory_source": table.metadata.get("source"),
+                           "contact": motion.contact_source,
+                           "interpolation": "PCHIP (angles, left hip point)"},
+                "timestamps": (("frame k shows the trajectory at t0 + k / fps" if options.frame_times is None
+                                else "frame k shows the trajectory at frame_times[k] (given; the video file "
+                                     "is stamped t0 + k / fps)")
+                               + "; with motion blur the shutter is open over t +- exposure / (2 fps)"),
+                "motion_blur": {"renders_per_frame": shoot.subframes.tolist(), "max_step_px": BLUR_STEP_PX}
+                if blur else None,
+                "contact": "the stance foot's lowest point, from the drawn geometry",
+                "video": video.name,
+                "truth": paths["truth"].name,
+                "size": [lens.width, lens.height],
+                "fps": options.fps,
+                "frames": n,
+                "codec": codec,
+                "frame_times": times.tolist(),
+                "params": params_record(params),
+                "camera": lens.to_dict(),
+                "camera_path": None if path is None else {
+                    "kind": "moves without turning (tracking.scene.CameraPath)",
+                    "frames": "ramp pose (rvec, tvec) in each frame, at the frame's time",
+                    "poses": poses},
+                "markers": layout.to_dict(),
+                "options": dataclasses.asdict(options),
+                "seed": int(seed) if isinstance(seed, np.integer) else seed,
+                "occluders": [{"first_frame": a, "frames": b, **p} for a, b, p in shoot.occluders],
+                "gains": shoot.gains.tolist(),
+                "software": _version(),
+            }
+            if renderer is not None:
+                meta["renderer"] = renderer
+            signals = {"lean": truth[:, 0], "steer": truth[:, 1], "pitch_left": truth[:, 2],
+                       "pitch_right": truth[:, 3], "contact_x": truth[:, 4], "contact_y": truth[:, 5]}
+            # the truth's metadata file NAME.json (model.trajectory's naming) is V.json itself
+            truth_table = TrajectoryTable(times, signals, stances, events, meta)
+            written = write_trajectory(truth_table, staged["truth"])
+            if written[2] != staged["metadata"]:
+                raise RuntimeError(f"unexpected trajectory metadata name {written[2]}")
+            # a moving camera's lens only: its ramp pose changes from frame to frame
+            lens_file = lens if path is None else dataclasses.replace(lens, ramp_pose=None)
+            staged["camera"].write_text(json.dumps(lens_file.to_dict(), indent=2) + "\n")
+            staged["markers"].write_text(json.dumps(layout.to_dict(), indent=2) + "\n")
+            if written[1] != staged["truth_events"]:
+                raise RuntimeError(f"unexpected trajectory events name {written[1]}")
+        except BaseException:
+            if writer is not None:
+                writer.release()
+            raise
 
 
 def default_filming(table, params, width: int = 1280, height: int = 720,
