@@ -108,10 +108,6 @@ _HELD_OUT_SD = 1e3
 #: resistance hidden); 3.5 to 8.7 with hip dry friction hidden (1.8e-4 N m, seed 202), an IPOPT
 #: "acceptable" exit 8 to 15 times the noise, from which the analysis named the slope.
 ANOTHER_MINIMUM = 2.0
-# When the walk gives no noise SD, the base fit's residual RMS stands for it unless it is more
-# than toywalk.sysid.residuals.NOISE_INFLATION times the samples' own scatter: then it is mostly
-# the base model's misfit, and the scatter is the noise, provided the scatter is white
-# (naming.NOISE_WHITENESS).
 
 
 @dataclasses.dataclass

@@ -691,13 +691,10 @@ def diagnose_summary(params: Params, data: SummaryData, *, free=(), effects=None
             if top["reaches"] and max(top["adds_p"]) < alpha / max(K - 1, 1) and all(top["away_from_null"]) \
                     and not rivals:
                 causes = list(top["pair"])
-    effective = None
-    if causes:
-        effective = explain(causes)
-        verdict = "discrepancy"
-    else:
-        verdict = decision.verdict
-        effective = decision.explanation
+    if causes == decision.causes:  # the rule's own answer, its explanation already judged
+        verdict, effective = decision.verdict, decision.explanation
+    else:  # a pair named after no single cause was
+        verdict, effective = "discrepancy", explain(causes)
     named = "+".join(causes) if causes else None
     chosen = fits.get(named) if named else (fits.get(significant[0]["effect"]) if significant else None)
     gain = {}

@@ -693,8 +693,8 @@ def _diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params],
         evidence += f"; gait features the base misses ({note})"
     if dropped:
         evidence += f"; the contact positions of walk(s) {dropped} were not used: they have no SDs"
-    shown = named if named is not None else (extended[decision.lead["effect"]] if decision and
-                                             decision.explanation is not None else None)
+    # the model judged (the named cause's, or the effective description's)
+    shown = extended[decision.lead["effect"]] if decision and decision.explanation else None
     gain = {"metric": "chi-square, all walks", "base": base_chi2,
             "extended": shown.chi2 if shown is not None else None}
     if held:
