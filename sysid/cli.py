@@ -377,6 +377,7 @@ _COMMAND_MODULES = (
     "toywalk.sysid.cmd_calibrate",
     "toywalk.sysid.cmd_render",
     "toywalk.sysid.cmd_track",
+    "toywalk.sysid.cmd_accuracy",
     "toywalk.sysid.cmd_fit",
     "toywalk.sysid.cmd_sample",
     "toywalk.sysid.cmd_diagnose",

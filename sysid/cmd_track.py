@@ -1,4 +1,5 @@
-"""``toywalk track V.mp4 [--camera C.json] [--markers M.json] --out M.csv [--overlay O.mp4]``.
+"""``toywalk track V.mp4 [--camera C.json] [--markers M.json] [--accuracy A.json] --out M.csv
+[--overlay O.mp4]``.
 
 Writes the trajectory files of the raw per-frame estimates (``M.csv``, ``M.events.csv``,
 ``M.json``: the input of ``fit``, errors independent from frame to frame) and of their smoothed
@@ -10,8 +11,10 @@ The ramp pose is measured from the ramp markers in the video (tracking/ramp.py).
 differs with the same aspect ratio, and its ramp pose is not (it is where ``render`` puts the
 camera for the bundled walker, not where a user's camera stands); a camera file
 given with a ``ramp_pose`` has it checked against the markers and refused, in one line naming the
-angle, if they disagree. Without ``--markers`` the layout is the one ``render`` wrote beside the
-video (``V.markers.json``) if there is one, else the bundled layout. ``M.json`` and the summary
+angle, if they disagree. With ``--accuracy`` (from ``toywalk accuracy``) both files carry the
+tracker's errors by phase of the step (tracking/accuracy_phase.py). Without ``--markers`` the
+layout is the one ``render`` wrote beside the video (``V.markers.json``) if there is one, else
+the bundled layout. ``M.json`` and the summary
 line say which ramp pose, camera and layout were used.
 """
 
@@ -52,6 +55,10 @@ def register(subparsers) -> None:
                         "(1/150, or 0.0067 s): written to M.json as exposure_s, so that fit, sample "
                         "and diagnose read the model's mean over it (default: not stated, each frame "
                         "read at its time)")
+    p.add_argument("--accuracy", default=None, metavar="A.json",
+                   help="the tracker's errors by phase of the step, from toywalk accuracy on renders of "
+                        "this walker filmed alike: their bias is removed and the SDs widened, so that "
+                        "fit and diagnose take them for errors, not physics (default: not carried)")
     p.add_argument("--full-search", action="store_true",
                    help="search the whole frame every time instead of around predicted markers (slower)")
     p.set_defaults(func=cmd_track)
@@ -160,6 +167,26 @@ def _bundled_lens(camera, video: Path):
             "calibrate, --camera); ")
 
 
+def _phase_errors(path, video: Path):
+    """The ``--accuracy`` file read (None without one); a frame rate other than the calibration's
+    is refused: the tracker's errors by phase depend on the frames a step has."""
+    if path is None:
+        return None
+    from toywalk.sysid.cli import CommandError
+    from toywalk.tracking.accuracy_phase import AccuracyError, load_phase_errors
+    from toywalk.tracking.video import declared_fps
+
+    try:
+        errors = load_phase_errors(path)
+    except AccuracyError as err:
+        raise CommandError(str(err)) from err
+    fps, measured = declared_fps(video), errors.source.get("fps")
+    if fps and measured and abs(fps / float(measured) - 1) > 0.01:
+        raise CommandError(f"--accuracy {path} was measured at {float(measured):g} frames/s and the video "
+                           f"has {fps:g}: measure it again with toywalk accuracy --like {video}")
+    return errors
+
+
 def cmd_track(args) -> int:
     from toywalk.model.trajectory import trajectory_paths, write_trajectory
     from toywalk.sysid.cli import CommandError, _version, output_path, refuse_overwrite
@@ -206,6 +233,7 @@ def cmd_track(args) -> int:
                                "s): a shutter cannot stay open beyond it")
     camera_path = _default(args.camera, "camera", "default.json")
     markers_path, markers_from = _layout_path(args.markers, video)
+    phase_errors = _phase_errors(args.accuracy, video)
     try:
         camera = load_camera(camera_path)
         lens, lens_said = "as given", ""
@@ -260,9 +288,12 @@ def cmd_track(args) -> int:
                 "smoothed_copy": smooth_path.name}
     smooth_meta = {**metadata, "signals": f"smoothed: {result.smoothing}, over stretches without gaps "
                                           "or heel strikes; sd scaled by the filter's noise gain"}
-    write_trajectory(result.table(smoothed=True, metadata=smooth_meta), smooth_path)
+    raw, smooth = result.table(metadata=raw_meta), result.table(smoothed=True, metadata=smooth_meta)
+    if phase_errors is not None:
+        raw, smooth = (phase_errors.apply(t, note=str(args.accuracy)) for t in (raw, smooth))
+    write_trajectory(smooth, smooth_path)
     try:
-        write_trajectory(result.table(metadata=raw_meta), out)
+        write_trajectory(raw, out)
     except BaseException:
         for p in trajectory_paths(smooth_path):
             p.unlink(missing_ok=True)
@@ -273,6 +304,10 @@ def cmd_track(args) -> int:
           f"ramp pose: {result.ramp['source']}; {lens_said}markers: {markers_path.name} ({markers_from}); "
           + (f"exposure {_seconds(exposure)} ({exposure_from})" if exposure is not None else
              "exposure not stated, each frame read at its time (--exposure)") + f" -> {out}")
+    if phase_errors is not None:
+        from toywalk.sysid.cmd_accuracy import describe_phase_errors
+
+        print(f"tracker errors carried from {args.accuracy}: {describe_phase_errors(phase_errors)}")
     passings = legs_passing(result.raw["pitch_left"], result.raw["pitch_right"])
     # The strikes found against the legs' passings, once a step (one fewer or more at the walk's
     # ends, and one more where a strike falls in a gap): more missing means missed strikes.

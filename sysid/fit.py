@@ -123,7 +123,7 @@ _CLOCK_LIFTED = True
 def _misfit_note(obs: Observations, rms: dict, stated: dict | None = None) -> str:
     """What to say when the residuals are mostly the model's misfit (empty when they are not):
     the signals whose residual RMS is more than :data:`toywalk.sysid.residuals.NOISE_INFLATION`
-    times their noise SD, ``stated`` (given, or the file's, a median per signal), else their
+    times their noise SD, ``stated`` (given, or the file's, an RMS per signal), else their
     samples' own scatter within steps (:func:`toywalk.sysid.residuals.scatter_noise`, the larger
     of its every-sample and alternate-sample values: noise a tracker smoothed is larger than its
     every-sample scatter says, a fast pitch's curvature makes the alternate one larger than the
@@ -1132,7 +1132,11 @@ class _Problem:
         if self.stage == 1.0:
             strikes = np.array(self.strikes_fn(x)).ravel()
             rms["strike_time"] = float(np.sqrt(np.mean((strikes - self.tm.strike_rel) ** 2)))
-        noise = {name: float(np.median(sigma[:self.n_obs][obs.signal == s_i]))
+        # the RMS of the samples' SDs, the noise an RMS of residuals is compared with: a
+        # tracker's SDs vary (the far leg's 0.04 to 0.19 degrees, the largest where the legs
+        # pass), and their median (0.062 degrees) understated it (0.097) so much that a model
+        # fitting the truth to 0.01 degrees was judged short of explaining the walk
+        noise = {name: float(np.sqrt(np.mean(sigma[:self.n_obs][obs.signal == s_i] ** 2)))
                  for s_i, name in enumerate(SIGNALS) if np.any(obs.signal == s_i)}
         note = _misfit_note(obs, rms, None if noise_source == "estimated from residuals" else noise)
         if note:
@@ -1140,7 +1144,7 @@ class _Problem:
         if self.path.n:
             rms.update(self.contact_rms(x))
             sd_c = sigma[self.n_obs:].reshape(2, -1)
-            noise.update({k: float(np.median(sd_c[i])) for i, k in enumerate(CONTACT_KEYS)})
+            noise.update({k: float(np.sqrt(np.mean(sd_c[i] ** 2))) for i, k in enumerate(CONTACT_KEYS)})
         whitened = self.whitened(x, sigma)
         success = bool(stats["success"])
         try:

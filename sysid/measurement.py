@@ -109,6 +109,10 @@ class Observations:
         How long the camera's shutter was open for each sample, centred on its time (s; the
         metadata's ``exposure_s``, 0 for instantaneous samples): each sample is then the
         angles' mean over it (:func:`shutter_reads`).
+    phase_sd : ndarray, shape (n_obs,)
+        SD of an error the sample shares with every step's sample at the same phase (rad; the
+        ``*_phase_sd`` columns: what a tracker's calibrated bias by phase leaves uncertain,
+        tracking/accuracy_phase.py); 0 where the file gives none.
     """
 
     step_start: np.ndarray
@@ -127,8 +131,10 @@ class Observations:
     note: str | None = None
     strike_sd_measured: bool = False
     exposure: float = 0.0
+    phase_sd: np.ndarray = None
 
     def __post_init__(self):
+        self.phase_sd = np.zeros(self.value.shape) if self.phase_sd is None else self.phase_sd
         unknown = np.full((len(self.strike_sd), 2), np.nan)
         self.contact = unknown if self.contact is None else self.contact
         self.contact_sd = unknown.copy() if self.contact_sd is None else self.contact_sd
@@ -253,7 +259,7 @@ def observations(table: TrajectoryTable, signals=SIGNALS) -> Observations:
                                f"from 0 to the sample interval {dt:.4g} s, got {exposure!r}")
     start, end = times[:-1], times[1:]
     stance = np.array(feet[:-1])
-    rows = {k: [] for k in ("step", "phase", "signal", "value", "sd", "time")}
+    rows = {k: [] for k in ("step", "phase", "signal", "value", "sd", "time", "phase_sd")}
     index = np.searchsorted(times, table.time, side="right") - 1
     for s_i, name in enumerate(SIGNALS):
         if name not in signals:
@@ -270,6 +276,8 @@ def observations(table: TrajectoryTable, signals=SIGNALS) -> Observations:
         rows["value"].append(values[ok])
         rows["sd"].append(sds[ok])
         rows["time"].append(table.time[ok])
+        shared = table.signals.get(f"{name}_phase_sd", np.zeros(len(values)))
+        rows["phase_sd"].append(np.nan_to_num(shared[ok], nan=0.0))
     data = {k: np.concatenate(v) for k, v in rows.items()}
     if len(data["value"]) == 0:
         raise MeasurementError("no measured sample lies within a complete step")
@@ -287,7 +295,7 @@ def observations(table: TrajectoryTable, signals=SIGNALS) -> Observations:
                         phase=np.clip(data["phase"], 0.0, 1.0), signal=data["signal"].astype(int),
                         value=data["value"], sd=data["sd"], time=data["time"], strike_sd=sd_t,
                         contact=contact, contact_sd=contact_sd, note=note, strike_sd_measured=measured,
-                        exposure=float(exposure))
+                        exposure=float(exposure), phase_sd=data["phase_sd"])
 
 
 #: Simpson's rule over the open shutter (or each part of it on either side of a heel strike):
@@ -339,7 +347,8 @@ def shutter_reads(obs: Observations) -> tuple[Observations, sp.csr_matrix | None
     phase = np.clip((times - obs.step_start[steps]) / obs.durations[steps], 0.0, 1.0)
     average = sp.csr_matrix((weights, (rows, np.arange(len(rows)))), shape=(len(lo), len(rows)))
     reads = dataclasses.replace(obs, step=steps, phase=phase, time=times, signal=obs.signal[rows],
-                                value=obs.value[rows], sd=obs.sd[rows], exposure=0.0)
+                                value=obs.value[rows], sd=obs.sd[rows], exposure=0.0,
+                                phase_sd=obs.phase_sd[rows])
     return reads, average
 
 

@@ -156,27 +156,53 @@ def phase_bins(obs: Observations) -> int:
     return next((b for b in range(_BINS, 1, -1) if complete(b) >= floor), _BINS)
 
 
-def _pattern(x: np.ndarray) -> tuple[float, float, float]:
+def _pattern(x: np.ndarray, shared: np.ndarray | None = None, feet=None) -> tuple[float, float, float]:
     """Repeated-measures ANOVA of a steps-by-bins table ``x`` (n, p): the bins' F against the
     interaction, its Greenhouse-Geisser epsilon, and the corrected p-value; NaNs with fewer than
-    three complete steps."""
-    x = x[np.all(np.isfinite(x), axis=1)]
+    three complete steps.
+
+    ``shared`` (n, p), with the steps' stance ``feet``, is the variance of an error each sample
+    shares with the same phase of every step of its foot (a tracker's calibrated bias, its
+    uncertainty: ``Observations.phase_sd`` squared). It adds to a bin's mean over the steps
+    ``v = sum over feet of (n_f / n)^2 mean(shared)`` whatever the number of steps, and, differing
+    between the feet, it is no part of the noise: the interaction and the bins' covariance (for
+    epsilon) are then taken within each foot's steps, and the bins' mean square is compared with
+    the interaction's plus ``n v`` (its expectation with no pattern). Without it (zero), the test
+    above. Measured on 200 draws of a shared error of 1 mrad under 2 mrad noise (16 steps, 800
+    components): false-alarm rate 0.064 at 0.05 and 0.015 at 0.01; the plain test's 0.90 at 0.05
+    (tests/sysid/test_residuals.py)."""
+    complete = np.all(np.isfinite(x), axis=1)
+    extra, groups = 0.0, [x[complete]]
+    if shared is not None and np.any(shared[complete] > 0):
+        c, f = shared[complete], np.asarray(feet)[complete]
+        extra = sum((np.sum(f == foot) / len(f)) ** 2 * np.mean(c[f == foot], axis=0)
+                    for foot in np.unique(f)).mean()
+        groups = [x[complete][f == foot] for foot in np.unique(f)]
+    x = x[complete]
     n, p = x.shape
-    if n < 3 or p < 2:
+    if n < 3 or p < 2 or min(len(g) for g in groups) < 2:
         return math.nan, math.nan, math.nan
-    bin_mean, step_mean, grand = x.mean(axis=0), x.mean(axis=1), x.mean()
+    bin_mean, grand = x.mean(axis=0), x.mean()
     ss_bins = n * float(np.sum((bin_mean - grand) ** 2))
-    inter = x - step_mean[:, None] - bin_mean[None, :] + grand
-    ss_err = float(np.sum(inter**2))
-    df_bins, df_err = p - 1, (n - 1) * (p - 1)
-    if ss_err <= 0:
+    within = [g - g.mean(axis=1)[:, None] - g.mean(axis=0)[None, :] + g.mean() for g in groups]
+    ss_err = float(sum(np.sum(w**2) for w in within))
+    df_bins, df_err = p - 1, sum(len(g) - 1 for g in groups) * (p - 1)
+    if ss_err <= 0 and extra <= 0:
         return math.inf, 1.0, 0.0
-    f = (ss_bins / df_bins) / (ss_err / df_err)
+    noise, known = ss_err / df_err, n * extra
+    f = (ss_bins / df_bins) / (noise + known)
     centre = np.eye(p) - 1.0 / p
-    cov = centre @ np.cov(x, rowvar=False) @ centre
+    spread = [g - g.mean(axis=0) for g in groups]
+    pooled = sum(d.T @ d for d in spread) / sum(len(g) - 1 for g in groups)
+    cov = centre @ pooled @ centre
     eps = float(np.trace(cov) ** 2 / (df_bins * np.trace(cov @ cov)))
     eps = min(max(eps, 1.0 / df_bins), 1.0)
-    return float(f), eps, float(special.fdtrc(eps * df_bins, eps * df_err, f))
+    # Satterthwaite's degrees of freedom: the noise's corrected by epsilon, the shared error's
+    # spherical (independent bins of equal variance) and, in the denominator, known
+    total = noise + known
+    df_num = total**2 / (noise**2 / (eps * df_bins) + known**2 / df_bins) if total > 0 else eps * df_bins
+    df_den = total**2 / (noise**2 / (eps * df_err)) if noise > 0 else math.inf
+    return float(f), eps, float(special.fdtrc(df_num, min(df_den, 1e12), f))
 
 
 def _ljung_box(series: np.ndarray, lags: int) -> tuple[float, float]:
@@ -232,7 +258,8 @@ def residual_report(obs: Observations, residuals: np.ndarray, bins: int | None =
         if not np.any(sel):
             continue
         per_step = _step_bin_means(obs, values, sel, bins)
-        f, eps, p_pattern = _pattern(per_step)
+        shared = _step_bin_means(obs, obs.phase_sd**2, sel, bins)
+        f, eps, p_pattern = _pattern(per_step, shared, obs.stance)
         with warnings.catch_warnings():  # a phase bin no step reached is NaN, on purpose
             warnings.simplefilter("ignore", RuntimeWarning)
             count = np.sum(np.isfinite(per_step), axis=0)

@@ -53,8 +53,9 @@ from .markers import LEGS, MarkerLayout, default_layout, marker_corners
 from .scene import CameraPath, Scene, WalkerState, default_view
 
 __all__ = ["BLUR_STEP_PX", "NOISE_LEVELS", "Filming", "Motion", "RenderError", "RenderOptions",
-           "RenderResult", "default_filming", "draw_occluder", "occluder_schedule", "output_paths",
-           "params_record", "render", "share_in_view", "shoot_times", "video_target", "write_shoot"]
+           "RenderResult", "StepwiseSpline", "default_filming", "draw_occluder", "occluder_schedule",
+           "output_paths", "params_record", "render", "share_in_view", "shoot_times", "video_target",
+           "write_shoot"]
 
 _CODECS = {".mp4": "mp4v", ".avi": "MJPG"}
 
@@ -228,6 +229,34 @@ def output_paths(out: str | Path) -> dict:
 
 # --- the walker's motion between samples ----------------------------------------------------------
 
+class StepwiseSpline:
+    """Values ``(n, m)`` at increasing ``times`` interpolated within each step: a cubic spline
+    (not-a-knot) through the samples between two heel strikes, extended to the strikes on both
+    sides (a kink there, where the rates jump, is kept instead of smoothed over). A step with fewer
+    than two samples takes its neighbours' splines. Outside the samples' span it holds the end
+    values.
+    """
+
+    def __init__(self, times: np.ndarray, values: np.ndarray, strikes):
+        from scipy.interpolate import CubicSpline
+
+        self.span = (float(times[0]), float(times[-1]))
+        inner = [s for s in sorted(strikes) if self.span[0] < s < self.span[1]]
+        piece = np.searchsorted(np.asarray(inner, float), times, side="right")
+        self.bounds, self.splines = [], []
+        for k in range(len(inner) + 1):
+            sel = piece == k
+            if sel.sum() < 2:
+                continue
+            self.bounds.append(inner[k - 1] if k > 0 else -math.inf)
+            self.splines.append(CubicSpline(times[sel], values[sel], axis=0))
+
+    def __call__(self, t: float) -> np.ndarray:
+        t = float(np.clip(t, *self.span))
+        k = max(0, int(np.searchsorted(self.bounds, t, side="right")) - 1)
+        return self.splines[k](t)
+
+
 class Motion:
     """The walker's placement at any time of a trajectory.
 
@@ -237,6 +266,13 @@ class Motion:
     model.md section 3, trapezoidal), starting with the contact at the ramp origin, and at each
     stance change the new contact is the landing foot's lowest point.
 
+    Between samples the angles and hips are interpolated step by step (:class:`StepwiseSpline`):
+    a cubic spline through each step's samples, reaching to the heel strikes on both sides. Rates
+    jump at a heel strike; one interpolant across it (PCHIP, as before) drew the legs up to 0.19
+    degrees away from the walk it was given at ``simulate``'s sample spacing (6.2 ms, toy-sized
+    walker), three times the tracker's noise and locked to the step's phase, a misfit no model
+    can remove. Step by step it is 0.0004 degrees there (0.006 on the stable toy's 0.107 s steps).
+
     Parameters
     ----------
     table : TrajectoryTable
@@ -244,7 +280,6 @@ class Motion:
     """
 
     def __init__(self, table, params):
-        from scipy.interpolate import PchipInterpolator
         from toywalk.model.kinematics import leg_poses
 
         self.params = params
@@ -274,9 +309,9 @@ class Motion:
             lean, steer, pl, pr = ang[i]
             hips[i] = leg_poses(params, steer, lean, pl, pr, str(stance[i]), contact[i]).hip["L"]
         self.time, self.stance = time, stance
-        self._interp = PchipInterpolator(time, np.column_stack([ang, hips]), axis=0, extrapolate=False)
         self.events = sorted((float(e["time"]), str(e["foot"])) for e in table.events
                              if e.get("foot") in ("L", "R") and math.isfinite(float(e["time"])))
+        self._interp = StepwiseSpline(time, np.column_stack([ang, hips]), [te for te, _ in self.events])
 
     @property
     def span(self) -> tuple[float, float]:

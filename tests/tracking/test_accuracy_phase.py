@@ -1,0 +1,142 @@
+"""The tracker's errors by phase of the step (tracking/accuracy_phase.py), on made-up tracks whose
+errors are known: a bias locked to one phase of one foot's steps is found and removed, the SDs
+are widened by what the bias's estimate leaves open, strike times' SDs are scaled, the file reads
+back as written, and a file that is not one is refused in one line."""
+
+import json
+import math
+import subprocess
+
+import numpy as np
+import pytest
+from toywalk.model.trajectory import SIGNALS, TrajectoryTable
+from toywalk.tracking.accuracy_phase import AccuracyError, PhaseErrors, load_phase_errors, measure, step_phase
+from toywalk.tracking.render import StepwiseSpline
+
+from .synthetic import TOYWALK
+
+STEP = 0.4  # s
+RATE = 120.0  # frames/s
+SD = 1e-3  # rad, the tracker's stated per-frame SD
+#: The made-up tracker's bias: -5 mrad in pitch_left from 0.60 to 0.70 of a left-stance step.
+BIAS, WHERE = -5e-3, (0.60, 0.70)
+
+
+def _walk(seed: int, steps: int = 16, time_error: float = 2e-4, time_sd: float = 1e-4):
+    """A tracked walk and its truth: white errors of ``SD`` everywhere plus :data:`BIAS`; strikes
+    found ``time_error`` (SD) off and stated with ``time_sd``."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, steps * STEP, 1.0 / RATE)
+    strikes = np.arange(steps) * STEP
+    feet = ["L" if k % 2 == 0 else "R" for k in range(steps)]
+    truth = {k: 0.1 * np.sin(2 * np.pi * t / (2 * STEP) + i) for i, k in enumerate(SIGNALS)}
+    stance = np.array([feet[min(int(x // STEP), steps - 1)] for x in t])
+    phase = (t % STEP) / STEP
+    measured = {k: v + rng.normal(0.0, SD, t.shape) for k, v in truth.items()}
+    locked = (stance == "L") & (phase >= WHERE[0]) & (phase < WHERE[1])
+    measured["pitch_left"][locked] += BIAS
+    measured.update({f"{k}_sd": np.full(t.shape, SD) for k in SIGNALS})
+    true_events = [{"time": float(s), "foot": f} for s, f in zip(strikes, feet, strict=True)]
+    found = [{"time": float(s + rng.normal(0.0, time_error)), "foot": f, "time_sd": time_sd}
+             for s, f in zip(strikes, feet, strict=True)]
+    return TrajectoryTable(t, measured, stance, found), TrajectoryTable(t, truth, stance, true_events)
+
+
+@pytest.fixture(scope="module")
+def errors():
+    return measure([_walk(seed) for seed in range(3)])
+
+
+def test_the_phase_locked_bias_is_found_where_it_is(errors):
+    """Bins of 0.05 (120 frames/s, 48 frames a step: 20 bins); the bias is measured to a few of
+    its SEs in the two bins it fills, and elsewhere nothing beyond 4 SEs is found."""
+    assert errors.bins == 20
+    key = "pitch_left@L"
+    inside = [12, 13]
+    np.testing.assert_allclose(errors.bias[key][inside], BIAS, atol=4 * errors.bias_se[key][inside].max())
+    se = np.concatenate([errors.bias_se[k] for k in errors.bias])
+    others = np.concatenate([np.delete(errors.bias[k], inside) if k == key else errors.bias[k]
+                             for k in errors.bias])
+    assert np.all(np.abs(others) < 4 * se.max())
+    assert WHERE[0] < errors.largest()["pitch_left"]["phase"] < WHERE[1]
+    # a spread of SD about the bias: no excess where the tracker's SD says all (3 SE of a variance
+    # from about 50 samples: 0.6 SD^2, so an excess of at most 0.8 SD)
+    assert np.all(errors.excess_sd["lean@L"] < 0.8 * SD)
+
+
+def test_a_walk_corrected_has_no_bias_left_and_wider_sds(errors):
+    """Another walk with the same tracker: after apply, its error in the biased bins is the
+    white noise's, and its SDs are no smaller than stated (never narrowed)."""
+    tracked, truth = _walk(11)
+    fixed = errors.apply(tracked, note="made up")
+    phase, foot = step_phase(fixed)
+    sel = (foot == "L") & (phase >= WHERE[0]) & (phase < WHERE[1])
+    before = tracked.signals["pitch_left"][sel] - truth.signals["pitch_left"][sel]
+    after = fixed.signals["pitch_left"][sel] - truth.signals["pitch_left"][sel]
+    assert abs(before.mean()) > 10 * SD / math.sqrt(sel.sum())  # the bias there, as made
+    assert abs(after.mean()) < 4 * SD / math.sqrt(sel.sum())
+    assert np.all(fixed.signals["pitch_left_sd"] >= tracked.signals["pitch_left_sd"])
+    assert fixed.metadata["tracker_errors"]["file"] == "made up"
+
+
+def test_strike_times_sd_is_scaled_by_its_measured_z():
+    """Strikes found 2e-4 s off and stated with 1e-4 s: the scale is about 2 (48 strikes: its
+    relative SE about 1/sqrt(96), 0.1), and the strikes' time_sd is multiplied by it; a tracker
+    stating too large an SD keeps it (the scale never falls below 1)."""
+    over = measure([_walk(seed) for seed in range(3)])
+    assert over.timing_scale == pytest.approx(2.0, rel=0.3)
+    tracked, _ = _walk(5)
+    fixed = over.apply(tracked)
+    assert fixed.events[0]["time_sd"] == pytest.approx(1e-4 * over.timing_scale)
+    under = measure([_walk(seed, time_error=1e-5) for seed in range(3)])
+    assert under.timing_scale == 1.0
+
+
+def test_the_file_reads_back_as_written(errors, tmp_path):
+    path = tmp_path / "a.json"
+    path.write_text(json.dumps(errors.to_json()))
+    back = load_phase_errors(path)
+    assert isinstance(back, PhaseErrors) and back.bins == errors.bins
+    for key in errors.bias:
+        np.testing.assert_allclose(back.bias[key], errors.bias[key], rtol=1e-12)
+        np.testing.assert_allclose(back.bias_se[key], errors.bias_se[key], rtol=1e-12)
+
+
+def test_a_file_that_is_not_one_is_refused_in_one_line(errors, tmp_path):
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"bins": 3}')
+    with pytest.raises(AccuracyError, match="not a tracker-error file"):
+        load_phase_errors(bad)
+    data = errors.to_json()
+    data["bias"]["lean@L"] = [0.0]
+    bad.write_text(json.dumps(data))
+    with pytest.raises(AccuracyError, match="20 finite numbers"):
+        load_phase_errors(bad)
+    video = tmp_path / "v.mp4"
+    video.write_bytes(b"not read: the file is refused first")
+    run = subprocess.run([TOYWALK, "track", str(video), "--accuracy", str(bad), "--out",
+                          str(tmp_path / "t.csv")], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 2 and len(run.stderr.strip().splitlines()) == 1, run.stderr
+    assert "20 finite numbers" in run.stderr
+    assert not (tmp_path / "t.csv").exists()
+
+
+def test_the_renderer_keeps_the_kink_of_a_heel_strike():
+    """A walk's angles are smooth within a step and kinked at a strike (the rates jump). Sampled
+    every 6.2 ms (simulate's spacing for a 0.15 m leg), the renderer's step-by-step spline stays
+    within 1e-5 rad of the truth; one interpolant across the strikes (PCHIP) misses by more than
+    1e-4 rad there, which is why the renderer splits at strikes."""
+    from scipy.interpolate import PchipInterpolator
+
+    def angle(t):  # a parabola in each step, continuous, its slope jumping from -4 to +4 rad/s
+        x = (t % STEP) / STEP
+        return 0.8 * (x - 0.5) ** 2 - 0.2
+
+    samples = np.arange(0.0, 4 * STEP, 0.0062)
+    strikes = [STEP, 2 * STEP, 3 * STEP]
+    fine = np.linspace(samples[0], samples[-1], 4001)
+    stepwise = StepwiseSpline(samples, angle(samples)[:, None], strikes)
+    got = np.array([stepwise(t)[0] for t in fine])
+    assert np.max(np.abs(got - angle(fine))) < 1e-5
+    across = PchipInterpolator(samples, angle(samples))(fine)
+    assert np.max(np.abs(across - angle(fine))) > 1e-4
