@@ -60,6 +60,10 @@ FEET = ("L", "R")
 #: Phase bins at most: 20 resolve the legs' passing (a tenth of a step wide on the toy-sized
 #: walker, where the bias lasts 0.1 of a step).
 MAX_BINS = 20
+#: An interval between strikes this many times the median is taken to hold a missed strike (a
+#: walk's steps vary far less; as sysid.measurement.MISSED_STEP_RATIO, which is 2 for the fit's
+#: steps: here a missed strike would put a step's errors into the wrong phase, so 1.5).
+MISSED_STEP = 1.5
 #: Samples of one walk's step in one bin, at least (:func:`bins_for`): fewer leave bins empty in
 #: some steps and the bins' means noisy.
 SAMPLES_PER_BIN = 2
@@ -72,12 +76,16 @@ class AccuracyError(ValueError):
 def step_phase(table: TrajectoryTable) -> tuple[np.ndarray, np.ndarray]:
     """Each sample's phase in its step (in [0, 1), NaN outside the steps) and the step's stance
     foot ('L'/'R', '' outside), from the table's own heel strikes: a step runs from one strike
-    to the next, and the foot that struck first stands."""
+    to the next, and the foot that struck first stands. An interval that holds a missed strike
+    (the same foot twice, or longer than :data:`MISSED_STEP` median intervals) is no step."""
     phase = np.full(len(table.time), np.nan)
     foot = np.full(len(table.time), "", dtype="<U1")
     strikes = sorted((float(e["time"]), str(e["foot"])) for e in table.events
                      if e.get("foot") in FEET and math.isfinite(float(e["time"])))
-    for (a, f), (b, _) in zip(strikes[:-1], strikes[1:], strict=True):
+    typical = float(np.median(np.diff([t for t, _ in strikes]))) if len(strikes) > 1 else math.inf
+    for (a, f), (b, g) in zip(strikes[:-1], strikes[1:], strict=True):
+        if f == g or b - a > MISSED_STEP * typical:
+            continue
         sel = (table.time >= a) & (table.time < b)
         phase[sel] = (table.time[sel] - a) / (b - a)
         foot[sel] = f

@@ -92,6 +92,17 @@ def test_strike_times_sd_is_scaled_by_its_measured_z():
     assert under.timing_scale == 1.0
 
 
+def test_a_missed_strike_leaves_its_interval_out():
+    """Where the tracker missed a strike, the interval holding it (the same foot twice) has no
+    phase: its errors would land in the wrong bins."""
+    tracked, _ = _walk(2)
+    del tracked.events[5]
+    phase, foot = step_phase(tracked)
+    gap = (tracked.time >= 4 * STEP) & (tracked.time < 6 * STEP)
+    assert np.isnan(phase[gap]).all() and (foot[gap] == "").all()
+    assert np.isfinite(phase[(tracked.time >= STEP) & (tracked.time < 4 * STEP)]).all()
+
+
 def test_the_file_reads_back_as_written(errors, tmp_path):
     path = tmp_path / "a.json"
     path.write_text(json.dumps(errors.to_json()))
@@ -140,3 +151,43 @@ def test_the_renderer_keeps_the_kink_of_a_heel_strike():
     assert np.max(np.abs(got - angle(fine))) < 1e-5
     across = PchipInterpolator(samples, angle(samples))(fine)
     assert np.max(np.abs(across - angle(fine))) > 1e-4
+
+
+@pytest.mark.slow
+def test_accuracy_and_track_accuracy_from_the_command_line(tmp_path):
+    """toywalk accuracy on one short render (4 steps of the toy-sized walker, about 15 s) writes
+    the file and keeps its video; track --accuracy on that video carries it (the bias's
+    uncertainty as *_phase_sd columns, the file named in the metadata); a file measured at another
+    frame rate is refused in one line, and so is writing over the file."""
+    from toywalk.model.trajectory import read_trajectory
+
+    from ..conftest import DATA
+
+    out = tmp_path / "a.json"
+    params = str(DATA / "params" / "toy-sized.toml")
+    made = subprocess.run([TOYWALK, "accuracy", "--params", params, "--walks", "1", "--steps", "4",
+                           "--out", str(out)], capture_output=True, text=True, timeout=600)
+    assert made.returncode == 0, made.stderr
+    assert "fewer than 3 walks" in made.stderr and "largest bias" in made.stdout
+    errors = load_phase_errors(out)
+    assert errors.walks == 1 and errors.bins == 20 and errors.source["fps"] == 120.0
+    video = tmp_path / "a.walks" / "walk0.mp4"
+    assert video.is_file()
+    run = subprocess.run([TOYWALK, "track", str(video), "--accuracy", str(out), "--out",
+                          str(tmp_path / "t.csv")], capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stderr
+    assert "tracker errors carried from" in run.stdout
+    table = read_trajectory(tmp_path / "t.csv")
+    assert np.isfinite(table.signals["pitch_left_phase_sd"]).sum() > 60  # two whole steps of 44 frames
+    assert table.metadata["tracker_errors"]["file"] == str(out)
+    data = json.loads(out.read_text())
+    data["source"]["fps"] = 60.0
+    other = tmp_path / "b.json"
+    other.write_text(json.dumps(data))
+    refused = subprocess.run([TOYWALK, "track", str(video), "--accuracy", str(other), "--out",
+                              str(tmp_path / "u.csv")], capture_output=True, text=True, timeout=120)
+    assert refused.returncode == 2 and "measured at 60 frames/s" in refused.stderr
+    assert len(refused.stderr.strip().splitlines()) == 1 and not (tmp_path / "u.csv").exists()
+    again = subprocess.run([TOYWALK, "accuracy", "--params", params, "--out", str(out)],
+                           capture_output=True, text=True, timeout=120)
+    assert again.returncode == 2 and len(again.stderr.strip().splitlines()) == 1
