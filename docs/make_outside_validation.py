@@ -145,7 +145,7 @@ def main(argv=None) -> None:
             print(seed, "walk made", flush=True)
             continue
         clock = time.perf_counter()
-        d = diagnose(table, params, free=FREE, workers=1)
+        d = diagnose(table, params, model="periodic", free=FREE, workers=1)
         row = row_of(seed, d, time.perf_counter() - clock)
         _append(out, row)
         print(seed, row["verdict"], row["cause"], row["candidate"], row["lr"], row["seconds"], flush=True)

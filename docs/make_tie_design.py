@@ -125,7 +125,7 @@ def joint() -> None:
         writer.writeheader()
         for i, (name, strength) in enumerate(HIDDEN.items()):
             tables = [walk(b.replace(**{name: strength}), 600 + 10 * i + k) for k, b in enumerate(bases)]
-            d = diagnose_walks(tables, bases, free=FREE, parameters=["slope"],
+            d = diagnose_walks(tables, bases, model="periodic", free=FREE, parameters=["slope"],
                                effects=[h.removeprefix("effects.") for h in HIDDEN], workers=2)
             best = min(f.chi2 for f in d.extended.values() if f.success)
             for r in d.ranking:
@@ -152,7 +152,8 @@ def null(first: int, last: int) -> None:
     out = HERE / "tie_null.csv"
     bases = [TOY, *(changed(c) for c in DESIGNS["two more walks: slope x0.8, balance masses 1 cm out"])]
     for seed in range(first, last):
-        d = diagnose_walks([walk(b, 10 * seed + k) for k, b in enumerate(bases)], bases, free=FREE)
+        d = diagnose_walks([walk(b, 10 * seed + k) for k, b in enumerate(bases)], bases, model="periodic",
+                           free=FREE)
         best = max(d.ranking, key=lambda r: abs(r.get("score_z", 0.0)))
         row = {"seed": seed, "verdict": d.verdict, "cause": d.cause or "", "largest_score": best["effect"],
                "z": f"{best.get('score_z', float('nan')):.2f}", "base_status": d.base.status,

@@ -15,8 +15,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from toywalk.model.files import software_version as _version
-from toywalk.model.files import staged_files
+from toywalk.model.files import software_version, staged_files
 
 __all__ = ["PROGRESS", "main", "say"]
 
@@ -56,7 +55,19 @@ def refuse_overwrite(outputs, inputs) -> None:
         raise CommandError(f"the output would overwrite the input {clash[0]}; choose another --out name")
 
 
-def _load(path: str):
+def parse_size(text: str) -> tuple[int, int]:
+    """An image size ``WxH`` in pixels (16 to 8192 each), or a :class:`CommandError`."""
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError as err:
+        raise CommandError(f"--size must be WxH in pixels, e.g. 1280x720, got {text!r}") from err
+    if w < 16 or h < 16 or w > 8192 or h > 8192:
+        raise CommandError(f"--size must be between 16x16 and 8192x8192, got {text!r}")
+    return w, h
+
+
+def load_walker(path: str):
+    """The parameter file ``path`` read, or its error as one :class:`CommandError` line."""
     from toywalk.model.parameters import ParameterError, load_params
 
     try:
@@ -164,7 +175,7 @@ def _with_effects(params, items):
 
 
 def cmd_gait(args) -> int:
-    params = _with_effects(_load(args.params), args.effect)
+    params = _with_effects(load_walker(args.params), args.effect)
     if args.continue_:
         return _continue(args, params)
     gait = _find_gait(params)
@@ -323,7 +334,7 @@ def _simulate_to_file(params, steps: int, out: Path, noise: float, seed, source:
         "status": traj.status, "message": traj.message,
         "scuffs": traj.scuffs, "min_clearance_m": traj.min_clearance,
         "swing_clearance_m": traj.swing_clearance if math.isfinite(traj.swing_clearance) else None,
-        "software": _version(),
+        "software": software_version(),
     }
     events = [{"time": e.time, "foot": e.foot, "x": e.x, "y": e.y} for e in traj.events]
     if position_noise > 0:  # heel-strike positions as a tracker would measure them
@@ -354,7 +365,7 @@ def scuffs_in(table, leg_length: float) -> str:
 
 
 def cmd_simulate(args) -> int:
-    params = _with_effects(_load(args.params), args.effect)
+    params = _with_effects(load_walker(args.params), args.effect)
     if args.steps < 1:
         raise CommandError(f"--steps must be >= 1, got {args.steps}")
     if not (args.noise >= 0 and math.isfinite(args.noise)):

@@ -16,6 +16,8 @@ import math
 import sys
 from pathlib import Path
 
+from toywalk.model.files import software_version
+
 __all__ = ["cmd_accuracy", "describe_phase_errors", "register"]
 
 
@@ -76,8 +78,7 @@ def describe_phase_errors(errors) -> str:
 
 def cmd_accuracy(args) -> int:
     from toywalk.model.files import atomic_write_text
-    from toywalk.sysid.cli import CommandError, _load, _version, output_path, refuse_overwrite, say
-    from toywalk.sysid.cmd_render import _size
+    from toywalk.sysid.cli import CommandError, load_walker, output_path, parse_size, refuse_overwrite, say
     from toywalk.tracking.accuracy_phase import AccuracyError, measure_by_rendering
     from toywalk.tracking.camera import CameraError, load_camera
     from toywalk.tracking.markers import LayoutError, load_layout
@@ -97,8 +98,8 @@ def cmd_accuracy(args) -> int:
     noise = args.noise if args.noise is not None else like.get("noise", 1)
     if noise not in (0, 1, 2, 3):
         raise CommandError(f"--noise must be 0, 1, 2 or 3, got {noise}")
-    size = _size(args.size) if args.size else like.get("size") or (1280, 720)
-    params = _load(args.params)
+    size = parse_size(args.size) if args.size else like.get("size") or (1280, 720)
+    params = load_walker(args.params)
     try:
         camera = load_camera(args.camera) if args.camera else None
         markers = args.markers or like.get("markers")
@@ -119,7 +120,7 @@ def cmd_accuracy(args) -> int:
     data = errors.to_json()
     data["source"].update({"params": str(args.params), "like": args.like, "camera_file": args.camera,
                            "markers_file": str(markers) if markers else None})
-    data["software"] = _version()
+    data["software"] = software_version()
     atomic_write_text(out, json.dumps(data, indent=2) + "\n")
     print(f"measured the tracker on {errors.walks} walk(s), {errors.bins} phase bins a step, "
           f"{errors.strikes} heel strikes: {describe_phase_errors(errors)} -> {out}; use: toywalk track "

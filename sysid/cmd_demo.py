@@ -25,6 +25,8 @@ import sys
 import time
 from pathlib import Path
 
+from toywalk.model.files import software_version
+
 __all__ = ["cmd_demo", "register", "SAMPLE_FREE"]
 
 #: The base fit's free parameters: what a builder measures least well on a toy (the foot's
@@ -95,7 +97,7 @@ def _analyse(out: Path, params_path: Path, sample: Path, workers: int, sample_st
     from toywalk.model.files import atomic_write_json, atomic_write_text
     from toywalk.model.parameters import load_params
     from toywalk.model.trajectory import read_trajectory
-    from toywalk.sysid.cli import CommandError, _version
+    from toywalk.sysid.cli import CommandError
     from toywalk.sysid.diagnosis_report import write_diagnosis
     from toywalk.sysid.discrepancy import diagnose
     from toywalk.sysid.fit import CONTACT_KEYS, FitError
@@ -116,13 +118,13 @@ def _analyse(out: Path, params_path: Path, sample: Path, workers: int, sample_st
     print(f"\n3. Fitting the base model (the seed's physics; {params_path.name}; free: "
           f"{', '.join(free)}) and diagnosing what it gets wrong")
     try:
-        result = diagnose(table, params, free=free, progress=_say, workers=workers)
+        result = diagnose(table, params, model="periodic", free=free, progress=_say, workers=workers)
     except (DiagnoseError, FitError, MeasurementError) as err:
         raise CommandError(str(err)) from err
     seconds["diagnose"] = result.seconds["total"]
     base = result.base
     atomic_write_json(out / "fit.json", dict(base.to_json(), input={
-        "trajectory": str(out / "tracked.csv"), "params": str(params_path), "software": _version()}))
+        "trajectory": str(out / "tracked.csv"), "params": str(params_path), "software": software_version()}))
     for name in base.free:
         print(f"   {name:<16s} {base.estimates[name]: .5g} +/- {base.std[name]:.2g} "
               f"(file {params.get(name):.5g})")
@@ -132,7 +134,7 @@ def _analyse(out: Path, params_path: Path, sample: Path, workers: int, sample_st
           f"max |eigenvalue| {base.gait.get('max_abs_eigenvalue', math.nan):.3f}")
     write_diagnosis(result, out / "diagnosis", {"trajectory": str(out / "tracked.csv"),
                                                 "params": str(params_path), "free": free,
-                                                "model": base.model, "software": _version()})
+                                                "model": base.model, "software": software_version()})
     print(f"   verdict: {result.verdict}; cause: {result.cause}")
     print(f"   evidence: {result.evidence}")
     gain = result.gain
@@ -194,7 +196,7 @@ def _analyse(out: Path, params_path: Path, sample: Path, workers: int, sample_st
             "fit": "fit.json", "diagnosis": "diagnosis/report.json",
             "posterior": "posterior/chain.json" if posterior else None,
             "parameters_against_truth": parameters, "lens_errors": lens,
-            "tracking_errors": tracking, "seconds": seconds, "software": _version()}
+            "tracking_errors": tracking, "seconds": seconds, "software": software_version()}
     atomic_write_json(out / "report.json", data)
     atomic_write_text(out / "report.md", _markdown(data, result, base, posterior))
     print(f"\nreport -> {out / 'report.md'} ({seconds['total']:.0f} s)")

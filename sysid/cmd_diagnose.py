@@ -7,6 +7,8 @@ A.toml --params B.toml``: one parameter file per walk, or one for all) are analy
 
 from __future__ import annotations
 
+from toywalk.model.files import software_version
+
 __all__ = ["cmd_diagnose", "register"]
 
 
@@ -43,10 +45,10 @@ def cmd_diagnose(args) -> int:
 
     from toywalk.model.parameters import ParameterError
     from toywalk.model.trajectory import read_trajectory
-    from toywalk.sysid.cli import CommandError, _load, _version
+    from toywalk.sysid.cli import CommandError, load_walker
     from toywalk.sysid.diagnosis_report import write_diagnosis
     from toywalk.sysid.discrepancy import diagnose
-    from toywalk.sysid.fit import FitError, periodicity_test
+    from toywalk.sysid.fit import FitError
     from toywalk.sysid.measurement import MeasurementError, observations
     from toywalk.sysid.naming import DiagnoseError, candidates
     from toywalk.sysid.summary import is_summary_file
@@ -61,7 +63,7 @@ def cmd_diagnose(args) -> int:
     if len(args.params) > 1:
         raise CommandError(f"one walk takes one --params, got {len(args.params)}")
     args.trajectory, args.params = args.trajectory[0], args.params[0]
-    params = _load(args.params)
+    params = load_walker(args.params)
     if is_summary_file(args.trajectory):
         return _summary(args, params, out)
     try:
@@ -81,17 +83,13 @@ def cmd_diagnose(args) -> int:
         raise CommandError(str(err)) from err
 
     try:
-        model = args.model
-        if model == "auto":
-            _say("periodicity test (is the walk on the model's limit cycle?)")
-            model = periodicity_test(table, params, free, check_jacobian=False, progress=_say).chosen.model
         result = diagnose(table, params, free=free, effects=_split(args.effects),
-                          parameters=_split(args.parameters), alpha=alpha, model=model, progress=_say,
+                          parameters=_split(args.parameters), alpha=alpha, model=args.model, progress=_say,
                           workers=workers, scheduler=args.scheduler)
     except (DiagnoseError, FitError, MeasurementError, ParameterError) as err:
         raise CommandError(str(err)) from err
     write_diagnosis(result, out, {"trajectory": str(args.trajectory), "params": str(args.params),
-                                  "free": free, "model": model, "software": _version()})
+                                  "free": free, "model": result.base.model, "software": software_version()})
     _print_verdict(result)
     for row in result.ranking[:5]:
         extra = (f", likelihood ratio {row['lr']:.1f} (p = {row['lr_p']:.2g})" if "lr" in row else "")
@@ -178,9 +176,9 @@ def _walks(args, out) -> int:
     """diagnose on several walks together (:func:`toywalk.sysid.walks.diagnose_walks`)."""
     from toywalk.model.parameters import ParameterError
     from toywalk.model.trajectory import read_trajectory
-    from toywalk.sysid.cli import CommandError, _load, _version
+    from toywalk.sysid.cli import CommandError, load_walker
     from toywalk.sysid.diagnosis_report import write_walks_diagnosis
-    from toywalk.sysid.fit import FitError, periodicity_test
+    from toywalk.sysid.fit import FitError
     from toywalk.sysid.measurement import MeasurementError, observations
     from toywalk.sysid.naming import DiagnoseError, candidates
     from toywalk.sysid.summary import is_summary_file
@@ -192,7 +190,7 @@ def _walks(args, out) -> int:
         raise CommandError(f"{len(paths)} walks need one --params each or one for all, got "
                            f"{len(args.params)}")
     workers = _workers(args)
-    params = [_load(f) for f in files]
+    params = [load_walker(f) for f in files]
     tables = []
     for path in paths:
         if is_summary_file(path):
@@ -209,21 +207,13 @@ def _walks(args, out) -> int:
     free = _free(args)
     try:
         candidates(params[0], free, _split(args.effects), _split(args.parameters))
-        model = args.model
-        if model == "auto":  # one model for all: the transient when any walk is off its cycle
-            chosen = []
-            for k, (table, walker) in enumerate(zip(tables, params, strict=True), start=1):
-                _say(f"periodicity test of walk {k} (is it on the model's limit cycle?)")
-                chosen.append(periodicity_test(table, walker, free, check_jacobian=False,
-                                               progress=_say).chosen.model)
-            model = "transient" if "transient" in chosen else "periodic"
         result = diagnose_walks(tables, params, free=free, effects=_split(args.effects),
-                                parameters=_split(args.parameters), alpha=alpha, model=model,
+                                parameters=_split(args.parameters), alpha=alpha, model=args.model,
                                 progress=_say, workers=workers, scheduler=args.scheduler)
     except (DiagnoseError, FitError, MeasurementError, ParameterError) as err:
         raise CommandError(str(err)) from err
     write_walks_diagnosis(result, out, {"trajectories": paths, "params": files, "free": free,
-                                        "model": model, "software": _version()})
+                                        "model": result.base.walks[0].model, "software": software_version()})
     _print_verdict(result, f" ({len(paths)} walks together)")
     held = result.gain.get("held_out")
     if held:
@@ -241,7 +231,7 @@ def _walks(args, out) -> int:
 def _summary(args, params, out) -> int:
     """diagnose on summary statistics (:mod:`toywalk.sysid.summary`)."""
     from toywalk.model.parameters import ParameterError
-    from toywalk.sysid.cli import CommandError, _version
+    from toywalk.sysid.cli import CommandError
     from toywalk.sysid.diagnosis_report import write_summary_diagnosis
     from toywalk.sysid.naming import DiagnoseError
     from toywalk.sysid.summary import SummaryError, diagnose_summary, read_summary
@@ -258,7 +248,7 @@ def _summary(args, params, out) -> int:
     except (SummaryError, DiagnoseError, ParameterError) as err:
         raise CommandError(str(err)) from err
     write_summary_diagnosis(result, out, {"summary": str(args.trajectory), "params": str(args.params),
-                                          "free": free, "software": _version()})
+                                          "free": free, "software": software_version()})
     _print_verdict(result)
     for row in result.ranking[:5]:
         if "chi2" in row:

@@ -21,6 +21,8 @@ from __future__ import annotations
 import math
 import sys
 
+from toywalk.model.files import software_version
+
 __all__ = ["cmd_fit", "register"]
 
 
@@ -60,13 +62,13 @@ def cmd_fit(args) -> int:
     from toywalk.model.files import atomic_write_json, strict_json
     from toywalk.model.trajectory import read_trajectory
     from toywalk.model.walker import CLEARANCE_RESOLUTION, describe_scuffs
-    from toywalk.sysid.cli import CommandError, _load, _version, output_path, say
-    from toywalk.sysid.fit import CONTACT_KEYS, FitError, fit, periodicity_test
+    from toywalk.sysid.cli import CommandError, load_walker, output_path, say
+    from toywalk.sysid.fit import CONTACT_KEYS, FitError, fit
 
     out = output_path(args.out, (".json",))
     if args.intervals is not None and args.intervals < 4:
         raise CommandError(f"--intervals must be >= 4, got {args.intervals}")
-    params = _load(args.params)
+    params = load_walker(args.params)
     free = [name.strip() for name in args.free.split(",") if name.strip()]
     if not free:
         raise CommandError("--free names no parameter")
@@ -84,15 +86,12 @@ def cmd_fit(args) -> int:
         raise CommandError(str(err)) from err
     options = dict(offsets=not args.no_offsets, n_intervals=args.intervals, priors=priors,
                    strikes=args.strikes)
-    test = starts = None
+    starts = None
     try:
         if args.multistart is not None:
             starts = _multi_start(table, params, free, args, options)
             params = starts.best.params
-        if args.model == "auto":
-            test = periodicity_test(table, params, free, progress=say, **options)
-            result = test.chosen
-        elif starts is not None:
+        if starts is not None and args.model != "auto":
             result = starts.best
         else:
             result = fit(table, params, free, model=args.model, progress=say, **options)
@@ -102,12 +101,11 @@ def cmd_fit(args) -> int:
     if starts is not None:
         report["multistart"] = starts.to_json()
         report["warnings"] = report["warnings"] + starts.warnings
-    if test is not None:
-        report["periodicity"] = test.to_json()
-        print(f"periodicity: {test.message}")
+    if result.periodicity is not None:
+        print(f"periodicity: {result.periodicity.message}")
     print(f"model: {result.model}")
     report["input"] = {"trajectory": str(args.trajectory), "params": str(args.params),
-                       "software": _version()}
+                       "software": software_version()}
     atomic_write_json(out, strict_json(report))  # a standard error not determined is null
     for name in result.names:
         se = result.std[name]

@@ -43,25 +43,13 @@ def register(subparsers) -> None:
     p.set_defaults(func=cmd_render)
 
 
-def _size(text: str) -> tuple[int, int]:
-    from toywalk.sysid.cli import CommandError
-
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-    except ValueError as err:
-        raise CommandError(f"--size must be WxH in pixels, e.g. 1280x720, got {text!r}") from err
-    if w < 16 or h < 16 or w > 8192 or h > 8192:
-        raise CommandError(f"--size must be between 16x16 and 8192x8192, got {text!r}")
-    return w, h
-
-
 def cmd_render(args) -> int:
     import math
 
     import numpy as np
     from toywalk.model.parameters import ParameterError, load_params
     from toywalk.model.trajectory import read_trajectory, trajectory_paths
-    from toywalk.sysid.cli import CommandError, output_path, refuse_overwrite, scuffs_in
+    from toywalk.sysid.cli import CommandError, output_path, parse_size, refuse_overwrite, scuffs_in
     from toywalk.tracking.camera import CameraError, load_camera
     from toywalk.tracking.markers import LayoutError, default_layout, load_layout
     from toywalk.tracking.render import RenderError, RenderOptions, default_filming, output_paths, render
@@ -80,7 +68,7 @@ def cmd_render(args) -> int:
         raise CommandError(f"--duration must be positive seconds, got {args.duration}")
     if args.codec is not None and len(args.codec) != 4:
         raise CommandError(f"--codec must be a four-character code such as mp4v or MJPG, got {args.codec!r}")
-    size = _size(args.size) if args.size else None
+    size = parse_size(args.size) if args.size else None
     try:
         params = load_params(args.params)
     except ParameterError as err:

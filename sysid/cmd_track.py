@@ -27,7 +27,7 @@ import sys
 from pathlib import Path
 
 from toywalk.model.files import DATA_DIR as _DATA
-from toywalk.model.files import strict_json
+from toywalk.model.files import software_version, strict_json
 
 __all__ = ["cmd_track", "register"]
 
@@ -189,7 +189,7 @@ def _phase_errors(path, video: Path):
 
 def cmd_track(args) -> int:
     from toywalk.model.trajectory import trajectory_paths, write_trajectory
-    from toywalk.sysid.cli import CommandError, _version, output_path, refuse_overwrite
+    from toywalk.sysid.cli import CommandError, output_path, refuse_overwrite
     from toywalk.tracking.camera import CameraError, load_camera
     from toywalk.tracking.events import legs_passing
     from toywalk.tracking.markers import LayoutError, load_layout
@@ -278,7 +278,7 @@ def cmd_track(args) -> int:
                      "camera), else stated in ramp_pose.sd_deg (one bias common to all frames)",
         "events_method": "kink (rate jump) in both leg pitches, continuous piecewise-quadratic "
                          "breakpoint fit; the leading leg strikes; contact position unknown",
-        "software": _version(),
+        "software": software_version(),
     }
     if exposure is not None:
         metadata["exposure_s"] = exposure

@@ -52,7 +52,7 @@ from scipy import special
 from toywalk.model.parameters import Params
 from toywalk.model.trajectory import SIGNALS, TrajectoryTable
 
-from .fit import FitError, FitResult, fit, gait_period, score_tests
+from .fit import FitError, FitResult, fit, gait_period, periodicity_test, score_tests
 from .measurement import observations
 from .naming import (
     ALPHA,
@@ -87,8 +87,8 @@ from .residuals import (
 from .sample import worker_pool
 
 __all__ = ["ALPHA", "MAX_EXTENDED", "PARAMETERS", "SEPARATION", "Candidate", "Diagnosis",
-           "DiagnoseError", "FitPool", "Verdict", "candidates", "complete_rows", "diagnose", "held_out",
-           "held_out_fits", "held_out_score", "held_out_tasks", "lr_p_value", "run_fits", "tied",
+           "DiagnoseError", "FitPool", "Verdict", "candidates", "chosen_model", "complete_rows", "diagnose",
+           "held_out", "held_out_fits", "held_out_score", "held_out_tasks", "lr_p_value", "run_fits", "tied",
            "weigh_ties"]
 
 #: IPOPT's iteration cap for a candidate's fit from the base fit: a candidate that does not
@@ -380,8 +380,23 @@ def _masked(table: TrajectoryTable, obs, held_steps: np.ndarray, sd: dict) -> Tr
     return TrajectoryTable(table.time, signals, table.stance, events, dict(table.metadata))
 
 
+def chosen_model(tables, params, free, *, progress=None, **fit_options) -> str:
+    """The base model for walks analysed together (``model='auto'``): each walk's
+    :func:`toywalk.sysid.fit.periodicity_test`, and the transient model when any walk is off its
+    cycle (one model for all), else the periodic one."""
+    say = progress or (lambda _msg: None)
+    options = {k: v for k, v in fit_options.items() if k not in ("model", "check_jacobian")}
+    chosen = []
+    for k, (table, walker) in enumerate(zip(tables, params, strict=True), start=1):
+        which = "the walk" if len(tables) == 1 else f"walk {k}"
+        say(f"periodicity test of {which} (is it on the model's limit cycle?)")
+        chosen.append(periodicity_test(table, walker, free, check_jacobian=False, progress=say,
+                                       **options).chosen.model)
+    return "transient" if "transient" in chosen else "periodic"
+
+
 def diagnose(table: TrajectoryTable, params: Params, *, free=(), effects=None, parameters=None,
-             alpha: float = ALPHA, model: str = "periodic", progress=None, workers: int = 1,
+             alpha: float = ALPHA, model: str = "auto", progress=None, workers: int = 1,
              scheduler: str | None = None, tie_design: bool = True, **fit_options) -> Diagnosis:
     """Find what the base model lacks (module docstring).
 
@@ -397,8 +412,9 @@ def diagnose(table: TrajectoryTable, params: Params, *, free=(), effects=None, p
         The held parameters that are candidates (default :data:`PARAMETERS`).
     alpha : float
         Family-wise false-alarm rate.
-    model : {'periodic', 'transient'}
-        The base model of the walk (:func:`toywalk.sysid.fit.periodicity_test` says which).
+    model : {'auto', 'periodic', 'transient'}
+        The base model of the walk; 'auto' (default, as ``toywalk diagnose``) lets
+        :func:`chosen_model` say which.
     progress : callable, optional
         Called with one line of text at each stage.
     workers, scheduler
@@ -410,6 +426,8 @@ def diagnose(table: TrajectoryTable, params: Params, *, free=(), effects=None, p
     **fit_options
         Passed to every fit (``offsets``, ``priors``, ``strikes``, ...).
     """
+    if model == "auto":
+        model = chosen_model([table], [params], free, progress=progress, **fit_options)
     with FitPool(workers, scheduler) as pool:
         return _diagnose(table, params, free=free, effects=effects, parameters=parameters, alpha=alpha,
                          model=model, progress=progress, pool=pool, tie_design=tie_design,

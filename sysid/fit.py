@@ -234,6 +234,8 @@ class FitResult:
     undetermined : list of str
         The estimates the data do not determine (the information singular along a direction they
         share): their standard errors, covariances and correlations are NaN, never a number.
+    periodicity : PeriodicityTest or None
+        The test that chose this fit's model, where ``fit(model='auto')`` made one.
     """
 
     free: list
@@ -270,10 +272,12 @@ class FitResult:
     seconds: float = 0.0
     exposure_s: float = 0.0
     undetermined: list = dataclasses.field(default_factory=list)
+    periodicity: PeriodicityTest | None = dataclasses.field(repr=False, default=None)
 
     def to_json(self) -> dict:
-        """JSON-ready dictionary (pipeline.md's fit file: estimates, std, covariance, ...)."""
-        return {
+        """JSON-ready dictionary (pipeline.md's fit file: estimates, std, covariance, ...; the
+        ``periodicity`` test where one chose the model)."""
+        out = {
             "status": self.status, "success": self.success, "iterations": self.iterations,
             "model": self.model, "initial_state": self.initial_state, "free": self.free,
             "estimates": self.estimates, "std": self.std,
@@ -290,6 +294,9 @@ class FitResult:
             "units": {"angles": "rad", "durations": "s", "contact positions": "m",
                       "parameters": "SI (pipeline.md)"},
         }
+        if self.periodicity is not None:
+            out["periodicity"] = self.periodicity.to_json()
+        return out
 
 
 # --------------------------------------------------------------------------------- set-up
@@ -467,9 +474,10 @@ def fit(table: TrajectoryTable, params: Params, free, *, model: str = "periodic"
         The walker: the starting point, and the values of everything not free.
     free : sequence of str
         Names to fit (``foot_radius``, ``com_offset[1]``, ``effects.impact_trailing_share``).
-    model : {'periodic', 'transient'}
-        The walk on its limit cycle, or the recorded steps from a free start (module docstring;
-        :func:`periodicity_test` says which the data need).
+    model : {'periodic', 'transient', 'auto'}
+        The walk on its limit cycle, or the recorded steps from a free start (module docstring);
+        'auto' lets :func:`periodicity_test` say which the data need and returns its chosen fit,
+        the test in its ``periodicity`` (what ``toywalk fit`` does by default).
     offsets : bool
         Fit the ramp-frame offsets of lean, steer and pitch (nuisance parameters).
     n_intervals, degree : int, optional
@@ -511,6 +519,13 @@ def fit(table: TrajectoryTable, params: Params, free, *, model: str = "periodic"
     FitError
         Bad names, unusable measurements or no starting gait (the message says which).
     """
+    if model == "auto":
+        if warm is not None:
+            raise FitError("a warm start continues one model's fit: give model 'periodic' or 'transient'")
+        test = periodicity_test(table, params, free, offsets=offsets, n_intervals=n_intervals, degree=degree,
+                                z_guess=z_guess, max_iter=max_iter, check_jacobian=check_jacobian,
+                                priors=priors, noise_sd=noise_sd, strikes=strikes, progress=progress)
+        return dataclasses.replace(test.chosen, periodicity=test)
     clock = time.perf_counter()
     say = progress or (lambda _msg: None)
     problem, w0 = _setup(table, params, free, model=model, offsets=offsets, n_intervals=n_intervals,

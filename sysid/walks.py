@@ -43,6 +43,7 @@ from .discrepancy import (
     _further_evidence,
     _masked,
     _strides,
+    chosen_model,
     held_out_fits,
     held_out_score,
     run_fits,
@@ -507,7 +508,7 @@ def _pattern_note(reports: list[ResidualReport]) -> str:
 
 def diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], *, free=(),
                    effects=None, parameters=None, alpha: float = ALPHA, noise_sd: dict | None = None,
-                   progress=None, workers: int = 1, scheduler: str | None = None,
+                   model: str = "auto", progress=None, workers: int = 1, scheduler: str | None = None,
                    tie_design: bool = True, **fit_options) -> WalksDiagnosis:
     """What the base model lacks, from several walks of one walker under known conditions
     (:func:`fit_walks`); the single walk's analysis is :func:`toywalk.sysid.discrepancy.diagnose`.
@@ -532,8 +533,13 @@ def diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], 
 
     Parameters are those of :func:`toywalk.sysid.discrepancy.diagnose` (``params`` one per walk;
     ``workers`` processes or a Dask ``scheduler`` run the candidates' fits side by side, and the
-    held-out folds' four); ``fit_options`` go to :func:`fit_walks`.
+    held-out folds' four; ``model`` 'auto', the default as in ``toywalk diagnose``, is the
+    transient model when any walk's periodicity test finds it off its cycle,
+    :func:`toywalk.sysid.discrepancy.chosen_model`); ``fit_options`` go to :func:`fit_walks`.
     """
+    if model == "auto":
+        model = chosen_model(tables, params, free, progress=progress, noise_sd=noise_sd, **fit_options)
+    fit_options["model"] = model
     with FitPool(workers, scheduler) as pool:
         return _diagnose_walks(tables, params, free=free, effects=effects, parameters=parameters,
                                alpha=alpha, noise_sd=noise_sd, progress=progress, pool=pool,

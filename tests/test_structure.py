@@ -53,11 +53,6 @@ _WALKS_FIT = ("to be removed: what the several-walk fit shares with fit() become
               "documented interface (or a module of its own that both import)")
 _WALKS_DISCREPANCY = ("to be removed: what the several-walk diagnosis shares with the one-walk "
                       "analysis becomes discrepancy.py's public, documented interface")
-_CLI_VERSION = ("to be removed: import toywalk.model.files.software_version, the public function "
-                "that cli.py's _version renames")
-_CLI_LOAD = ("to be removed: the commands' parameter-file reader (ParameterError as CommandError) "
-             "becomes a public function of cli.py")
-
 #: Private names imported from another module today: (importing module, defining module, name).
 KNOWN_PRIVATE_IMPORTS = {
     ("toywalk.sysid.walks", "toywalk.sysid.fit", "_setup"): _WALKS_FIT,
@@ -75,12 +70,6 @@ KNOWN_PRIVATE_IMPORTS = {
     ("toywalk.sysid.diagnosis_report", "toywalk.sysid.diagnostics", "_save"):
         "to be removed: one public function writes a figure atomically (beside the atomic JSON "
         "and text writers of model/files.py), imported by both",
-    ("toywalk.sysid.cmd_demo", "toywalk.sysid.cli", "_version"): _CLI_VERSION,
-    ("toywalk.sysid.cmd_diagnose", "toywalk.sysid.cli", "_version"): _CLI_VERSION,
-    ("toywalk.sysid.cmd_fit", "toywalk.sysid.cli", "_version"): _CLI_VERSION,
-    ("toywalk.sysid.cmd_track", "toywalk.sysid.cli", "_version"): _CLI_VERSION,
-    ("toywalk.sysid.cmd_diagnose", "toywalk.sysid.cli", "_load"): _CLI_LOAD,
-    ("toywalk.sysid.cmd_fit", "toywalk.sysid.cli", "_load"): _CLI_LOAD,
 }
 
 

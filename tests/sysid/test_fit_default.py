@@ -100,3 +100,28 @@ def test_the_default_fit_of_a_walk_off_its_cycle_finishes_and_says_its_stages_to
     assert set(report["jacobian_check"]) == set(FREE)
     assert max(report["jacobian_check"].values()) < 1e-6, report["jacobian_check"]
     assert "model: transient" in stdout
+
+
+def test_the_library_chooses_the_model_as_the_command_does():
+    """``fit(model='auto')`` is the command's default in the library: the periodicity test's
+    chosen fit with the test attached (and in its JSON); ``chosen_model``, which ``diagnose`` and
+    ``diagnose_walks`` use by default, picks the same model. 8 steps of the walk released off its
+    cycle, in about 10 s: the likelihood ratio rejects the periodic model (p = 8e-10 measured) but
+    its residuals do not yet change from step to step, and it is kept (20 steps choose the
+    transient one, the slow test above)."""
+    import inspect
+
+    from toywalk.sysid.discrepancy import chosen_model, diagnose
+    from toywalk.sysid.walks import diagnose_walks
+
+    table, walker = offcycle_walk(8), load_params(PARAMS)
+    auto = fit(table, walker, FREE, model="auto", check_jacobian=False)
+    test = periodicity_test(table, walker, FREE, check_jacobian=False)
+    assert auto.periodicity is not None and auto.model == test.chosen.model
+    assert auto.estimates == pytest.approx(test.chosen.estimates, rel=1e-9)
+    assert auto.to_json()["periodicity"]["chosen"] == auto.model
+    assert chosen_model([table], [walker], FREE) == auto.model
+    for analysis in (diagnose, diagnose_walks):
+        assert inspect.signature(analysis).parameters["model"].default == "auto"
+    with pytest.raises(FitError, match="warm start"):
+        fit(table, walker, FREE, model="auto", warm=auto)

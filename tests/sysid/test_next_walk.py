@@ -57,7 +57,7 @@ def test_a_tie_suggests_the_further_walk_that_names_the_cause(tmp_path):
     the damper, ahead of the dry friction by a margin of first order's size."""
     walker = load_params(DATA / "params" / "compass-3d.toml")
     first = _measured(walker, 41)
-    d = diagnose(first, walker, free=FREE, effects=EFFECTS, parameters=[], workers=2)
+    d = diagnose(first, walker, model="periodic", free=FREE, effects=EFFECTS, parameters=[], workers=2)
     assert d.cause == "unexplained", d.evidence
     further = d.next_walk
     assert further is not None and sorted(further["tied"]) == ["effects.hip_coulomb",
@@ -84,7 +84,7 @@ def test_a_tie_suggests_the_further_walk_that_names_the_cause(tmp_path):
     # the analysis of walks weighs a third the same way: a third like the first leaves 2.8, the
     # ramps 531 and 355, the masses 5.1 and 5.2 (what separates is the new condition, not more of
     # the old).
-    twice = diagnose_walks([first, first], [walker, walker], free=FREE, effects=EFFECTS,
+    twice = diagnose_walks([first, first], [walker, walker], model="periodic", free=FREE, effects=EFFECTS,
                            parameters=[], workers=2)
     assert twice.cause == "unexplained" and twice.next_walk is not None, twice.evidence
     rows_twice = {r["label"]: r for r in twice.next_walk["conditions"]}
@@ -97,8 +97,8 @@ def test_a_tie_suggests_the_further_walk_that_names_the_cause(tmp_path):
     row = rows[further["suggestion"]]
     second_walker = walker.replace(slope=row["to"])
     second = _measured(second_walker, 42)
-    both = diagnose_walks([first, second], [walker, second_walker], free=FREE, effects=EFFECTS,
-                          parameters=[], workers=2)
+    both = diagnose_walks([first, second], [walker, second_walker], model="periodic", free=FREE,
+                          effects=EFFECTS, parameters=[], workers=2)
     assert both.cause == "effects.hip_damping", both.evidence
     lr = {r["effect"]: r["lr"] for r in both.ranking}
     gap = lr["effects.hip_damping"] - lr["effects.hip_coulomb"]

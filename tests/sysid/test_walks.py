@@ -117,7 +117,7 @@ def test_a_base_stuck_in_another_minimum_is_screened_and_beaten_again(monkeypatc
     exceed the residuals' norm) and the dry friction's likelihood ratio read 0, p = 1."""
     monkeypatch.setattr(walks_module, "_JUMP_LIMIT", math.inf)  # the jump, never the path
     tables, walkers = _two_slopes()
-    d = diagnose_walks(tables, walkers, free=FREE, effects=["hip_damping", "hip_coulomb"],
+    d = diagnose_walks(tables, walkers, model="periodic", free=FREE, effects=["hip_damping", "hip_coulomb"],
                        parameters=[], workers=2)
     assert d.cause == "effects.hip_damping", d.evidence
     bound = math.sqrt(d.base.chi2)  # a score is the residuals' projection on a unit vector
@@ -158,7 +158,7 @@ def test_walks_of_the_base_model_are_adequate_and_nothing_is_fitted(toy):
     adequate with three walks and two free parameters)."""
     flatter = toy.replace(slope=0.9 * toy.slope)
     tables = [simulated_walk(p, 8, 0.002, 900 + k)[0] for k, p in enumerate((toy, flatter))]
-    d = diagnose_walks(tables, [toy, flatter], noise_sd=NOISE)
+    d = diagnose_walks(tables, [toy, flatter], noise_sd=NOISE, model="periodic")
     assert d.verdict == "adequate" and d.cause is None, d.evidence
     assert d.extended == {} and all("lr" not in r for r in d.ranking)
     assert len(d.residuals) == 2 and not any(r.systematic for r in d.residuals)

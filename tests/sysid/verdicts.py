@@ -51,7 +51,8 @@ def assert_named_from_three_walks(effect, truth, seed, rivals, offsets):
     bases = [toy, toy.replace(slope=0.8 * toy.slope), toy.replace(com_offset=offset)]
     tables = [simulated_walk(b.replace(**{f"effects.{effect}": truth}), 12, 0.002, seed + k)[0]
               for k, b in enumerate(bases)]
-    d = diagnose_walks(tables, bases, free=FREE, parameters=["slope"], effects=rivals, offsets=offsets)
+    d = diagnose_walks(tables, bases, model="periodic", free=FREE, parameters=["slope"], effects=rivals,
+                       offsets=offsets)
     assert d.verdict == "discrepancy" and d.cause == f"effects.{effect}", d.evidence
     rows = [r for r in d.ranking if "lr" in r]
     named = next(r for r in rows if r["effect"] == d.cause)
