@@ -20,7 +20,7 @@ from .effects import CONTINUOUS
 from .parameters import Params
 from .walker import StepFailure, Walker
 
-__all__ = ["HeelStrike", "Trajectory", "simulate"]
+__all__ = ["HeelStrike", "Trajectory", "gait_walk", "simulate"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -209,3 +209,56 @@ def _mirror(z: np.ndarray, sign: float) -> np.ndarray:
     out = z.copy()
     out[:4] *= sign
     return out
+
+
+def gait_walk(params: Params, steps: int, *, noise: float = 0.0, position_noise: float = 0.0, seed=None,
+              source: str = "", progress: bool = False):
+    """The walker's gait walked ``steps`` steps from its fixed point
+    (:func:`toywalk.model.gait.find_gait`) as a trajectory file holds it (``toywalk simulate``):
+    a :class:`toywalk.model.trajectory.TrajectoryTable` with the contacts, the heel strikes (the
+    first at the start is not one of them) and the metadata (the parameters, ``source`` naming
+    their file, the seed, scuffs, clearance).
+
+    ``noise`` (rad) adds white noise of that SD to the angles and ``*_sd`` columns saying so;
+    ``position_noise`` (m) does so to the strikes' contact positions, as a tracker would measure
+    them; both drawn from ``seed``. Raises :class:`toywalk.model.gait.GaitNotFound` where the
+    walker has no gait.
+    """
+    import math
+
+    from .files import software_version
+    from .gait import find_gait
+    from .parameters import PARAMETER_NAMES
+    from .trajectory import TrajectoryTable
+
+    gait = find_gait(params)
+    traj = simulate(params, gait.fixed_point, steps, planar=gait.planar, progress=progress)
+    rng = np.random.default_rng(seed)
+    signals = traj.angles()
+    if noise > 0:
+        signals = {k: v + rng.normal(0.0, noise, size=v.shape) for k, v in signals.items()}
+        signals.update({f"{k}_sd": np.full(v.shape, noise) for k, v in list(signals.items())})
+    signals["contact_x"] = traj.contact[:, 0]
+    signals["contact_y"] = traj.contact[:, 1]
+    metadata = {
+        "source": {"kind": "simulation", "parameters": source,
+                   "parameter_values": dict(zip(PARAMETER_NAMES, params.vector().tolist(), strict=True)),
+                   "effects": dict(params.effects), "seed": seed, "steps": steps,
+                   "start": "gait fixed point", "planar": gait.planar},
+        "units": {"time": "s", "angles": "rad", "contact": "m"},
+        "noise_sd": noise,
+        "position_noise_sd": position_noise,
+        "timestamps": "exact simulation times, uniform sampling",
+        "status": traj.status, "message": traj.message,
+        "scuffs": traj.scuffs, "min_clearance_m": traj.min_clearance,
+        "swing_clearance_m": traj.swing_clearance if math.isfinite(traj.swing_clearance) else None,
+        "software": software_version(),
+    }
+    events = [{"time": e.time, "foot": e.foot, "x": e.x, "y": e.y} for e in traj.events]
+    if position_noise > 0:  # heel-strike positions as a tracker would measure them
+        for event in events:
+            event["x"] += rng.normal(0.0, position_noise)
+            event["y"] += rng.normal(0.0, position_noise)
+            event["x_sd"] = event["y_sd"] = position_noise
+    return TrajectoryTable(traj.times, signals, traj.stance, events, metadata)
+

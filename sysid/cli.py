@@ -1,8 +1,7 @@
-"""The ``toywalk`` command line (pipeline.md, "Command line").
+"""toywalk: film a passive-dynamic walker, fit its model, and find what the model gets wrong.
 
-Every command exits non-zero with one clear line on stderr for bad input, and never leaves a
-half-written output file behind. Commands of later stages (calibrate, render, track, fit, sample,
-diagnose) are added as those stages land.
+The command line (every option: docs/cli.md). Every command exits non-zero with one clear line on
+stderr for bad input, and never leaves a half-written output file behind.
 """
 
 from __future__ import annotations
@@ -14,8 +13,7 @@ import os
 import sys
 from pathlib import Path
 
-import numpy as np
-from toywalk.model.files import software_version, staged_files
+from toywalk.model.files import staged_files
 
 __all__ = ["PROGRESS", "main", "say"]
 
@@ -308,44 +306,19 @@ def _parse_effects(items) -> dict:
 
 def _simulate_to_file(params, steps: int, out: Path, noise: float, seed, source: str,
                       position_noise: float = 0.0) -> dict:
-    from toywalk.model.simulate import simulate
-    from toywalk.model.trajectory import TrajectoryTable, write_trajectory
+    from toywalk.model.gait import GaitNotFound
+    from toywalk.model.simulate import gait_walk
+    from toywalk.model.trajectory import write_trajectory
 
-    gait = _find_gait(params)
-    traj = simulate(params, gait.fixed_point, steps, planar=gait.planar, progress=sys.stderr.isatty())
-    rng = np.random.default_rng(seed)
-    signals = traj.angles()
-    if noise > 0:
-        signals = {k: v + rng.normal(0.0, noise, size=v.shape) for k, v in signals.items()}
-        signals.update({f"{k}_sd": np.full(v.shape, noise) for k, v in list(signals.items())})
-    signals["contact_x"] = traj.contact[:, 0]
-    signals["contact_y"] = traj.contact[:, 1]
-    from toywalk.model.parameters import PARAMETER_NAMES
-
-    metadata = {
-        "source": {"kind": "simulation", "parameters": source,
-                   "parameter_values": dict(zip(PARAMETER_NAMES, params.vector().tolist(), strict=True)),
-                   "effects": dict(params.effects), "seed": seed, "steps": steps,
-                   "start": "gait fixed point", "planar": gait.planar},
-        "units": {"time": "s", "angles": "rad", "contact": "m"},
-        "noise_sd": noise,
-        "position_noise_sd": position_noise,
-        "timestamps": "exact simulation times, uniform sampling",
-        "status": traj.status, "message": traj.message,
-        "scuffs": traj.scuffs, "min_clearance_m": traj.min_clearance,
-        "swing_clearance_m": traj.swing_clearance if math.isfinite(traj.swing_clearance) else None,
-        "software": software_version(),
-    }
-    events = [{"time": e.time, "foot": e.foot, "x": e.x, "y": e.y} for e in traj.events]
-    if position_noise > 0:  # heel-strike positions as a tracker would measure them
-        for event in events:
-            event["x"] += rng.normal(0.0, position_noise)
-            event["y"] += rng.normal(0.0, position_noise)
-            event["x_sd"] = event["y_sd"] = position_noise
-    table = TrajectoryTable(traj.times, signals, traj.stance, events, metadata)
+    try:
+        table = gait_walk(params, steps, noise=noise, position_noise=position_noise, seed=seed, source=source,
+                          progress=sys.stderr.isatty())
+    except GaitNotFound as err:
+        raise CommandError(f"no gait found: {err}") from err
     write_trajectory(table, out)
-    return {"status": traj.status, "message": traj.message, "samples": len(traj.times),
-            "heel_strikes": len(events), "scuffs": scuffs_in(table, params.leg_length)}
+    meta = table.metadata
+    return {"status": meta["status"], "message": meta["message"], "samples": len(table.time),
+            "heel_strikes": len(table.events), "scuffs": scuffs_in(table, params.leg_length)}
 
 
 def scuffs_in(table, leg_length: float) -> str:
@@ -382,8 +355,10 @@ def cmd_simulate(args) -> int:
     return 0 if info["status"] == "completed" else 1
 
 
-#: Modules that add commands of later stages: each defines ``register(subparsers)``, adding its
-#: sub-parsers with ``set_defaults(func=...)``; a function raises :class:`CommandError` for bad input.
+#: The modules of the commands but gait, effects and simulate (here): each defines
+#: ``register(subparsers)``, adding its sub-parser with ``set_defaults(func=...)``, and its
+#: function raises :class:`CommandError` for bad input. Imported by name as the parser is built,
+#: so that each imports this module's helpers inside its functions without an import cycle.
 _COMMAND_MODULES = (
     "toywalk.sysid.cmd_calibrate",
     "toywalk.sysid.cmd_render",
@@ -398,13 +373,11 @@ _COMMAND_MODULES = (
 
 def build_parser() -> argparse.ArgumentParser:
     import importlib
-    import importlib.util
 
     parser = argparse.ArgumentParser(prog="toywalk", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
     for name in _COMMAND_MODULES:
-        if importlib.util.find_spec(name) is not None:
-            importlib.import_module(name).register(sub)
+        importlib.import_module(name).register(sub)
     p = sub.add_parser("gait", help="find the symmetric gait and its stability")
     p.add_argument("--params", required=True, help="parameter TOML file")
     p.add_argument("--effect", action="append", metavar="NAME=VALUE",

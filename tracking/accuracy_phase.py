@@ -295,8 +295,8 @@ def measure_by_rendering(params, folder: str | Path, *, walks: int = 3, steps: i
 
     Raises AccuracyError where the walker has no gait or a walk cannot be rendered or tracked.
     """
-    from ..model.gait import GaitNotFound, find_gait
-    from ..model.simulate import simulate
+    from ..model.gait import GaitNotFound
+    from ..model.simulate import gait_walk
     from .markers import default_layout
     from .render import RenderError, RenderOptions, default_filming, params_record, render
     from .track import TrackError, track_video
@@ -304,13 +304,9 @@ def measure_by_rendering(params, folder: str | Path, *, walks: int = 3, steps: i
     if walks < 1 or steps < 3:
         raise AccuracyError(f"need at least one walk of three steps, got {walks} walk(s) of {steps}")
     try:
-        gait = find_gait(params)
+        walk = gait_walk(params, steps, source="toywalk accuracy")
     except GaitNotFound as err:
         raise AccuracyError(f"the walker has no gait to film: {str(err).splitlines()[0]}") from err
-    traj = simulate(params, gait.fixed_point, steps, planar=gait.planar)
-    signals = {**traj.angles(), "contact_x": traj.contact[:, 0], "contact_y": traj.contact[:, 1]}
-    events = [{"time": e.time, "foot": e.foot, "x": e.x, "y": e.y} for e in traj.events]
-    walk = TrajectoryTable(traj.times, signals, traj.stance, events, {"source": {"kind": "simulation"}})
     given = camera is not None
     try:
         options = RenderOptions.preset(noise, fps=float(fps))
