@@ -87,6 +87,12 @@ class Arrest:
     the landing leg. ``u1`` is a plastic impulsive projection (Carnot's theorem: it gains no
     kinetic energy), and kinetic energy is convex in the rates, so no blend with 0 <= k <= 1 gains
     energy where ``u0`` gains none.
+
+    Several arrests blend multilinearly: with strengths k_1..k_m, the law that enforces the
+    constraints of a subset S of them has weight ``prod_{i in S} k_i prod_{i not in S} (1 - k_i)``
+    (the empty subset is ``u0``). Every law of a non-empty subset is again a plastic projection
+    (several plastic constraints at once), the weights are non-negative and sum to 1, so the blend
+    gains no energy either; with one arrest it is the blend above.
     """
 
     strength: ca.SX
