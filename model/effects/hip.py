@@ -121,6 +121,9 @@ class HingeCubicStiffness(Effect):
     # 3 k theta^2 = 0.017 N m/rad there (29 % of the swing leg's gravity stiffness) and near none
     # while the legs pass; it shortens the step by 1.1 % (docs/effects.md).
     typical = 0.2
+    # Softening (k < 0) is admitted down to -2 N m/rad^3, a stiffness 3 k theta^2 = -0.17 N m/rad
+    # at heel strike, three times the swing leg's gravity stiffness reversed; the upper bound only
+    # excludes absurd values (100 N m/rad^3: 8.7 N m/rad at heel strike).
     bounds = (-2.0, 100.0)
     enters = "equations of motion"
     physics = "hardening hinge spring: torque -k (theta_sw - theta_st)^3 on the swing leg"
