@@ -34,7 +34,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from toywalk.model.effects import EFFECTS
+from toywalk.model.effects import EFFECTS, LIBRARY
 from toywalk.model.gait import find_gait
 from toywalk.model.parameters import PARAMETER_NAMES, load_params
 from toywalk.model.simulate import simulate
@@ -170,7 +170,7 @@ def effects(names=(), shift: float = SHIFT) -> None:
     if out.exists():
         with open(out) as fh:
             done = {(r["effect"], r["offsets"], r["scale"]) for r in csv.DictReader(fh)}
-    for k, name in enumerate(EFFECTS):
+    for k, name in enumerate(LIBRARY):
         offsets = name not in HELD_OFFSETS
         key = (f"effects.{name}", "free" if offsets else "held",
                "beyond" if shift == SHIFT else f"beyond {shift:g}")

@@ -1,7 +1,7 @@
 """Effects study, first pass: can one effect of the library bring the Tinkertoy model
 (data/params/tinkertoy.toml, a rigid frictionless fit) to the toy's measured gait?
 
-From the fit's gait, each effect of ``toywalk.model.effects.EFFECTS`` is raised from its null
+From the fit's gait, each effect of the library (``toywalk.model.effects.LIBRARY``) is raised from its null
 value by pseudo-arclength continuation (``toywalk.model.continuation.continue_branch``) over a
 physically meaningful range, and every branch point is compared with the toy's measurements
 (Coleman & Ruina 1998: 0.47 s and 1.3 cm per stride, ~4 degrees side-to-side tilt, no visible
@@ -41,7 +41,7 @@ from pathlib import Path
 import numpy as np
 from toywalk.model import Walker, load_params, solve_fixed_point
 from toywalk.model.continuation import continue_branch
-from toywalk.model.effects import EFFECTS
+from toywalk.model.effects import EFFECTS, LIBRARY
 from toywalk.model.gait import GaitNotFound
 
 HERE = Path(__file__).resolve().parent
@@ -200,14 +200,14 @@ def main() -> None:
     tasks = []
     for study in STUDIES:
         slope, z0 = base["starts"][study]
-        for name in EFFECTS:
+        for name in LIBRARY:
             tasks.append({"study": study, "effect": name, "end": effect_range(name),
                           "slope": slope, "z0": z0, "ds": DS_FIRST[study]})
     # Symmetry-breaking effects (stride map, twice the work) first, so the two workers end together.
     tasks.sort(key=lambda t: not EFFECTS[t["effect"]].breaks_symmetry)
     with ProcessPoolExecutor(max_workers=2) as pool:
         results = list(pool.map(run_branch, tasks))
-    results.sort(key=lambda r: (STUDIES.index(r["study"]), list(EFFECTS).index(r["effect"])))
+    results.sort(key=lambda r: (STUDIES.index(r["study"]), LIBRARY.index(r["effect"])))
     for r in results:
         print(f"{r['study']:>15} {r['effect']:>22}: {r['status']:>11}, {len(r['rows'])} points, "
               f"{r['seconds']:.0f} s  {r['message']}", flush=True)
@@ -252,12 +252,12 @@ def plot(rows) -> None:
               ("lean_deg", "tilt amplitude (deg)", 4.0),
               ("steer_deg", "steer amplitude (deg)", 0.0),
               ("max_abs_eigenvalue_per_step", "max |eigenvalue| per step", 1.0)]
-    colours = dict(zip(EFFECTS, plt.get_cmap("tab10").colors, strict=False))
+    colours = dict(zip(LIBRARY, plt.get_cmap("tab10").colors, strict=False))
     fig, axes = plt.subplots(len(STUDIES), len(panels), figsize=(17, 10.5), sharey="col")
     for i, study in enumerate(STUDIES):
         for j, (col, label, target) in enumerate(panels):
             ax = axes[i, j]
-            for name in EFFECTS:
+            for name in LIBRARY:
                 sel = [r for r in rows if r["study"] == study and r["effect"] == name]
                 if not sel:
                     continue
@@ -284,7 +284,7 @@ def plot(rows) -> None:
                 ax.set_ylabel(f"{study}\n{label}")
     handles = [plt.Line2D([], [], color=colours[n], lw=2,
                           label=f"{n} (typical {EFFECTS[n].typical:g} {EFFECTS[n].unit})")
-               for n in EFFECTS]
+               for n in LIBRARY]
     handles += [plt.Line2D([], [], color="0.3", ls=":", label="past a fold (the partner gait)"),
                 plt.Line2D([], [], color="k", lw=2.5, alpha=0.3,
                            label="the toy (Coleman & Ruina 1998)"),
@@ -454,7 +454,8 @@ def write_md(results, base, seconds) -> None:
               "its per-step equivalent, eigenvalues outside the unit circle, heading (deg, from "
               "the fall line towards the left), the two state components with the largest share "
               "in the eigenvector of the largest eigenvalue.", ""]
-    for name, effect in EFFECTS.items():
+    for name in LIBRARY:
+        effect = EFFECTS[name]
         lines += [f"### {name}", "",
                   f"{effect.physics[0].upper()}{effect.physics[1:]} (unit {effect.unit}; typical "
                   f"{effect.typical:g}, bounds {effect.bounds[0]:g} to {effect.bounds[1]:g}; enters "
@@ -494,7 +495,7 @@ def write_md(results, base, seconds) -> None:
 def key_results(results, all_rows) -> list[str]:
     """The headline numbers, computed from the branches."""
     by = {(r["study"], r["effect"]): r for r in results}
-    lost = [e for e in EFFECTS
+    lost = [e for e in LIBRARY
             if max(r["value_over_typical"] for r in by[("4.5 deg", e)]["rows"]) < 1e-2]
     out = ["## Key results", ""]
     reach = {e: max(max(r["value"] for r in by[(s, e)]["rows"]) for s in STUDIES[:2]) for e in lost}
@@ -505,7 +506,7 @@ def key_results(results, all_rows) -> list[str]:
                + ". The branch turns back there, and Newton from the last gait finds no gait a "
                "little further on. The fold in slope (above) explains this.")
     stable = [r for r in all_rows if r["stable"]]
-    steep = [r for e in EFFECTS if EFFECTS[e].continuous for r in by[("6 deg", e)]["rows"]
+    steep = [r for e in LIBRARY if EFFECTS[e].continuous for r in by[("6 deg", e)]["rows"]
              if r["segment"] == 0]
     low = min(steep, key=lambda r: r["max_abs_eigenvalue_per_step"])
     out.append("- **No branch point is stable.** The smallest per-step max |eigenvalue| on any "

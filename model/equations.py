@@ -272,8 +272,8 @@ def _collision_exprs(sym: Symbolic) -> dict[str, ca.SX]:
     the hip axis through its hip point H1, both with absolute velocities. The planar system keeps
     the n-component of (a). Effects of the collision law add, to the same linear equations, a
     normal impulse ``lambda_C e_z`` at the trailing foot C (a share of the total normal impulse,
-    itself linear in u+), and blend with the law that also arrests a rate of the landing leg
-    (:class:`toywalk.model.effects.Arrest`).
+    itself linear in u+), and blend with the laws that also arrest rates of the landing leg
+    (:class:`toywalk.model.effects.Arrest`; with several, every subset of them).
 
     Returns a dict: ``u_plus``; ``residual`` (the jump conditions as a function of ``up``, the
     symbol of trial post-collision speeds, with the effects' trailing impulse); ``up``;
@@ -330,8 +330,6 @@ def _collision_exprs(sym: Symbolic) -> dict[str, ca.SX]:
         arrest = effect.arrest(k, ctx)
         if arrest is not None:
             arrests.append(arrest)
-    if len(arrests) > 1:
-        raise ValueError("the collision law takes at most one arresting effect")
 
     def jump_conditions(trailing_share):
         """The jump conditions, linear in u+: residual = A(q) u+ - b(q, u)."""
@@ -348,25 +346,37 @@ def _collision_exprs(sym: Symbolic) -> dict[str, ca.SX]:
     residual, a_mat, b_vec = jump_conditions(share)
     u_plus = ca.solve(a_mat, b_vec)
     normal = ca.substitute(normal_total, up, u_plus)
-    lead, trail = (1 - share) * normal, share * normal
-    for arrest in arrests:
-        # The law that also arrests a rate of the landing leg, the landing foot's patch taking the
-        # whole impulse (no trailing share): an impulsive couple mu * axis on the landing leg (in
-        # the whole walker's angular momentum about D, not the trailing leg's) and
-        # axis . omega_2+ = 0. A plastic projection (Carnot), so its blends with an admissible law
-        # never gain energy (kinetic energy is convex in the rates); impulses blend alike.
+
+    def arrested(chosen):
+        """The law that also arrests the rates of ``chosen`` (arrests), the landing foot's patch
+        taking the whole impulse (no trailing share): an impulsive couple mu_i * axis_i on the
+        landing leg for each (in the whole walker's angular momentum about D, not the trailing
+        leg's) and axis_i . omega_2+ = 0. Plastic constraints all: a plastic projection (Carnot),
+        so its blends with an admissible law never gain energy (kinetic energy is convex in the
+        rates); impulses blend alike. Returns (u+, landing normal impulse, trailing one)."""
         _, a_plain, b_plain = jump_conditions(0)
-        if lay.planar:  # omega . e_z vanishes identically there: the arrest is already enforced
-            arrested = ca.solve(a_plain, b_plain)
+        if lay.planar:  # omega . e_z and omega . h vanish identically there: already enforced
+            law = ca.solve(a_plain, b_plain)
         else:
-            row = ca.jacobian(ca.dot(arrest.axis, after["w2"]), up)
-            column = ca.vertcat(-arrest.axis, 0)
-            kkt = ca.vertcat(ca.horzcat(a_plain, column), ca.horzcat(row, ca.SX.zeros(1, 1)))
-            arrested = ca.solve(kkt, ca.vertcat(b_plain, 0))[:lay.nq]
-        k = arrest.strength
-        u_plus = u_plus + k * (arrested - u_plus)
-        lead = (1 - k) * lead + k * ca.substitute(normal_total, up, arrested)
-        trail = (1 - k) * trail
+            rows = ca.vertcat(*(ca.jacobian(ca.dot(a.axis, after["w2"]), up) for a in chosen))
+            columns = ca.horzcat(*(ca.vertcat(-a.axis, 0) for a in chosen))
+            n = len(chosen)
+            kkt = ca.vertcat(ca.horzcat(a_plain, columns), ca.horzcat(rows, ca.SX.zeros(n, n)))
+            law = ca.solve(kkt, ca.vertcat(b_plain, ca.SX.zeros(n)))[:lay.nq]
+        return law, ca.substitute(normal_total, up, law), ca.SX(0)
+
+    def blend(i, chosen):
+        """The arrests from the i-th on blended into the law of ``chosen``: multilinear in the
+        strengths (:class:`toywalk.model.effects.Arrest`), nested so that a strength of exactly 0
+        leaves the other laws' numbers bit for bit."""
+        if i == len(arrests):
+            return arrested(chosen) if chosen else (u_plus, (1 - share) * normal, share * normal)
+        u_a, lead_a, trail_a = blend(i + 1, chosen)
+        u_b, lead_b, trail_b = blend(i + 1, (*chosen, arrests[i]))
+        k = arrests[i].strength
+        return u_a + k * (u_b - u_a), (1 - k) * lead_a + k * lead_b, (1 - k) * trail_a + k * trail_b
+
+    u_plus, lead, trail = blend(0, ())
     final = velocities(u_plus)
     return dict(u_plus=u_plus, residual=residual, up=up, kinetic_before=kinetic(before),
                 energy_change=kinetic(final) - kinetic(before),

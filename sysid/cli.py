@@ -284,8 +284,9 @@ def cmd_effects(args) -> int:
     for r in rows:
         low, high = r["bounds"]
         symmetry = "; breaks the left-right symmetry" if r["breaks_symmetry"] else ""
+        port = "; port-only (not a default cause of diagnose)" if r["port_only"] else ""
         print(f"{r['name']:<22s} [{r['unit']}] null {r['null']:g}, typical {r['typical']:g}, "
-              f"bounds [{low:g}, {high:g}]; enters the {r['enters']}{symmetry}")
+              f"bounds [{low:g}, {high:g}]; enters the {r['enters']}{symmetry}{port}")
         print(f"{'':<22s} {r['physics']}")
     return 0
 

@@ -77,6 +77,8 @@ _LENGTHS = {"leg_length", "foot_radius", "foot_lateral_radius", "hip_width",
 _MASSES = {"leg_mass", "axle_mass"}
 _EFFECT_POWERS = {"1": (0.0, 0.0, 0.0), "rad": (0.0, 0.0, 0.0),
                   "N m": (1.0, 1.0, 1.0),                 # torque: m g l
+                  "N m/rad": (1.0, 1.0, 1.0),             # stiffness: m g l (per radian)
+                  "N m/rad^3": (1.0, 1.0, 1.0),           # cubic stiffness: m g l (per rad^3)
                   "N m s/rad": (1.5, 1.0, 0.5)}           # damping: m l^2 / sqrt(l / g)
 # The fit's own options that multi_start passes through (everything of fit() but its data).
 _FIT_OPTIONS = tuple(inspect.signature(fit).parameters)[3:]

@@ -37,7 +37,7 @@ import math
 from collections.abc import Callable
 
 from scipy import special
-from toywalk.model.effects import EFFECTS
+from toywalk.model.effects import EFFECTS, LIBRARY
 from toywalk.model.parameters import Params
 
 from .fit import fit_bounds
@@ -115,9 +115,10 @@ class Candidate:
 def candidates(params: Params, free=(), effects=None, parameters=None) -> list[Candidate]:
     """The candidate causes: the library's effects (or those named in ``effects``) and the
     parameters of :data:`PARAMETERS` (or ``parameters``), less the free ones and those that
-    cannot move (both bounds at the base value)."""
+    cannot move (both bounds at the base value). The port-only terms of the registry
+    (:data:`toywalk.model.effects.PORTS`) are candidates only where ``effects`` names them."""
     names = []
-    chosen = list(EFFECTS) if effects is None else list(effects)
+    chosen = list(LIBRARY) if effects is None else list(effects)
     for name in chosen:
         if name.removeprefix("effects.") not in EFFECTS:
             raise DiagnoseError(f"unknown effect {name!r}; the library has {', '.join(EFFECTS)}")

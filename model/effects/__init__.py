@@ -11,18 +11,47 @@ from __future__ import annotations
 
 from .asymmetry import Asymmetry, CrossSlope
 from .base import Arrest, Context, Effect
-from .contact import PivotFriction, RollingResistance
-from .hip import COULOMB_SMOOTHING, HipCoulomb, HipDamping, coulomb_torque
-from .impact import ImpactSpinArrest, ImpactTrailingShare
+from .contact import (
+    PitchCoulomb,
+    PitchDamping,
+    PitchStiffness,
+    PivotFriction,
+    RollCoulomb,
+    RollDamping,
+    RollingResistance,
+    RollStiffness,
+    SpinCoulomb,
+)
+from .hip import (
+    COULOMB_SMOOTHING,
+    HingeBias,
+    HingeCubicStiffness,
+    HingeStiffness,
+    HipCoulomb,
+    HipDamping,
+    coulomb_torque,
+)
+from .impact import ImpactLeanArrest, ImpactSpinArrest, ImpactTrailingShare
+from .ports import PORTS, Port
 
-__all__ = ["COULOMB_SMOOTHING", "CONTINUOUS", "EFFECTS", "Arrest", "Context", "Effect",
-           "coulomb_torque"]
+__all__ = ["COULOMB_SMOOTHING", "CONTINUOUS", "EFFECTS", "LIBRARY", "PORTS", "Arrest", "Context",
+           "Effect", "Port", "coulomb_torque"]
 
+# The library's effects, then the port-only terms of the dictionary of generalised forces
+# (:data:`toywalk.model.effects.ports.PORTS`), after them so that the library's parameter and
+# dissipation indices stay where they were.
 _UNITS = (HipDamping(), HipCoulomb(), RollingResistance(), PivotFriction(), ImpactTrailingShare(),
-          ImpactSpinArrest(), Asymmetry(), CrossSlope())
+          ImpactSpinArrest(), Asymmetry(), CrossSlope(),
+          HingeStiffness(), HingeCubicStiffness(), HingeBias(), RollDamping(), RollCoulomb(),
+          RollStiffness(), PitchDamping(), PitchCoulomb(), PitchStiffness(), SpinCoulomb(),
+          ImpactLeanArrest())
 
 #: Registry of effects by name, in the order of the parameter vector.
 EFFECTS: dict[str, Effect] = {e.name: e for e in _UNITS}
 
 #: Names of the effects that act between collisions, in the order of the dissipation output.
 CONTINUOUS: tuple[str, ...] = tuple(e.name for e in _UNITS if e.continuous)
+
+#: Names of the library's effects proper: the causes the discrepancy analysis tries by default
+#: (the registry less the port-only terms, :attr:`Effect.port_only`).
+LIBRARY: tuple[str, ...] = tuple(e.name for e in _UNITS if not e.port_only)

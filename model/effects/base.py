@@ -11,7 +11,8 @@ neutral default, so an effect overrides only the hooks it needs:
 - :meth:`Effect.couples` returns couples acting on the legs between collisions (a hinge torque
   pair, a contact couple from the ramp); the builder turns them into generalised forces by virtual
   work, ``Q = sum_legs W_leg^T M_leg`` with ``W_leg = d omega_leg / du`` (Kane & Levinson 1985),
-  and into the effect's dissipated power ``-sum_legs M_leg . omega_leg``;
+  and into the effect's dissipated power ``-sum_legs M_leg . omega_leg`` (for a conservative term,
+  a spring, it is the rate of change of the energy the spring stores, of either sign);
 - :meth:`Effect.trailing_impulse` and :meth:`Effect.arrest` change the collision law.
 
 Every strength is a symbolic input of the compiled functions (``k`` below is a CasADi SX scalar):
@@ -70,6 +71,21 @@ class Context:
         return ca.SX([0.0, 0.0, 1.0])
 
     @property
+    def heading(self) -> ca.SX:
+        """The heading axis ``Rz(phi) e_x`` in the ramp plane: the axis of the lean psi."""
+        import casadi as ca
+
+        return ca.vertcat(ca.cos(self.q4[0]), ca.sin(self.q4[0]), 0)
+
+    @property
+    def pitch_axis(self) -> ca.SX:
+        """``Rz(phi) e_y = e_z x heading``: the hip axis n projected onto the ramp plane, the axis
+        of the stance foot's fore-aft rolling."""
+        import casadi as ca
+
+        return ca.vertcat(-ca.sin(self.q4[0]), ca.cos(self.q4[0]), 0)
+
+    @property
     def rate_unit(self) -> ca.SX:
         """sqrt(g / l) (rad/s), the natural rate of a pendulum of the leg's length."""
         import casadi as ca
@@ -87,6 +103,12 @@ class Arrest:
     the landing leg. ``u1`` is a plastic impulsive projection (Carnot's theorem: it gains no
     kinetic energy), and kinetic energy is convex in the rates, so no blend with 0 <= k <= 1 gains
     energy where ``u0`` gains none.
+
+    Several arrests blend multilinearly: with strengths k_1..k_m, the law that enforces the
+    constraints of a subset S of them has weight ``prod_{i in S} k_i prod_{i not in S} (1 - k_i)``
+    (the empty subset is ``u0``). Every law of a non-empty subset is again a plastic projection
+    (several plastic constraints at once), the weights are non-negative and sum to 1, so the blend
+    gains no energy either; with one arrest it is the blend above.
     """
 
     strength: ca.SX
@@ -115,6 +137,11 @@ class Effect:
         stride-periodic (two steps) rather than step-periodic.
     physics : str
         One line of physics.
+    port_only : bool
+        True for a term of the dictionary of generalised forces at the walker's ports
+        (:data:`toywalk.model.effects.ports.PORTS`) that is no effect of the library proper: it is
+        in the registry and the parameter vector like every effect, but not among the causes the
+        discrepancy analysis tries by default.
     """
 
     name: str = ""
@@ -125,6 +152,7 @@ class Effect:
     enters: str = ""
     breaks_symmetry: bool = False
     physics: str = ""
+    port_only: bool = False
 
     @property
     def continuous(self) -> bool:
@@ -136,7 +164,7 @@ class Effect:
         return {"name": self.name, "unit": self.unit, "null": self.null, "typical": self.typical,
                 "bounds": list(self.bounds), "enters": self.enters,
                 "breaks_symmetry": self.breaks_symmetry, "dissipation_output": self.continuous,
-                "physics": self.physics}
+                "physics": self.physics, "port_only": self.port_only}
 
     # ------------------------------------------------------------------------ hooks (neutral)
     def com_offsets(self, k: ca.SX, ctx: Context, d_st: ca.SX, d_sw: ca.SX) -> tuple[ca.SX, ca.SX]:

@@ -23,13 +23,18 @@ essential". Two consequences of a compliant, finite contact, each reducing to th
   Chosen over a restitution coefficient because a bouncing foot leaves the ramp, which the
   rolling-contact model cannot follow, and because spin is the rate that the seed's point contact
   leaves free and in which the toy shows "no visible variation" (Coleman & Ruina 1998).
+- ``impact_lean_arrest`` (port-only, the heel-strike port's ``lean_loss``): as the spin arrest,
+  about the heading axis h = Rz(phi) e_x instead of the ramp normal: the strip's width grips
+  sideways and arrests a fraction k of the landing foot's lean rate (``omega_landing . h = psi'``).
+  With the spin arrest on too, the collision blends the four laws (neither, either, both
+  constraints; :class:`Arrest`), each plastic, so it gains no energy either.
 """
 
 from __future__ import annotations
 
 from .base import Arrest, Effect
 
-__all__ = ["ImpactSpinArrest", "ImpactTrailingShare"]
+__all__ = ["ImpactLeanArrest", "ImpactSpinArrest", "ImpactTrailingShare"]
 
 
 class ImpactTrailingShare(Effect):
@@ -63,3 +68,24 @@ class ImpactSpinArrest(Effect):
     def arrest(self, k, ctx):
         # In the planar reduction there is no spin: the arrested law is the seed's plastic law.
         return Arrest(strength=k, axis=ctx.ez)
+
+
+class ImpactLeanArrest(Effect):
+    """The fraction of the landing foot's lean rate (about the heading axis) arrested at heel
+    strike."""
+
+    name = "impact_lean_arrest"
+    unit = "1"
+    null = 0.0
+    # impact_spin_arrest's; the stable toy leans little, so it acts on the gait's stability: the
+    # largest eigenvalue 0.967 to 0.987 (docs/effects.md).
+    typical = 0.5
+    bounds = (0.0, 1.0)
+    enters = "collision law"
+    physics = ("the landing foot's strip grips sideways: an impulsive couple about the heading axis "
+               "arrests a fraction k of its lean rate")
+    port_only = True
+
+    def arrest(self, k, ctx):
+        # In the planar reduction there is no lean: the arrested law is the seed's plastic law.
+        return Arrest(strength=k, axis=ctx.heading)

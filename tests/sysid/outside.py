@@ -18,7 +18,11 @@ perturbation of the start's rates, so a walk is the same for the same seed.
   (data/params/stable-toy.toml) with a torsion spring between the legs, torque
   ``-k (theta_sw - theta_st)`` on the swing leg about the axle and its reaction on the stance
   leg (:class:`HingeSpring`). Conservative: the library has hinge friction (viscous and dry)
-  but no hinge stiffness.
+  but no hinge stiffness. The same physics is the port-only term ``hinge_stiffness`` of the
+  dictionary of generalised forces at the walker's ports (docs/effects.md), which ``diagnose``
+  does not try unless named: the walk stays outside its default causes. The test-only unit keeps
+  its own name, so that its walks are made as before (tests/sysid/test_outside_walks.py checks the
+  two agree).
 - :func:`foot_profile_walk` (kind ``foot_profile``): the walk of ``contact`` on ellipsoid feet whose
   bottom has the torus's radii of curvature but whose fore-aft radius of curvature shortens along
   the rim (:func:`profile_axes`). The model's foot is a torus: one radius all round. Compared

@@ -5,6 +5,8 @@ import math
 
 import numpy as np
 import pytest
+from toywalk.model import load_params
+from toywalk.model.effects import EFFECTS
 from toywalk.model.trajectory import TrajectoryTable
 from toywalk.sysid.measurement import observations
 from toywalk.sysid.naming import (
@@ -12,6 +14,7 @@ from toywalk.sysid.naming import (
     SEPARATION,
     Candidate,
     Explanation,
+    candidates,
     decide,
     feature_p,
     judge,
@@ -19,6 +22,8 @@ from toywalk.sysid.naming import (
     parameter_note,
 )
 from toywalk.sysid.residuals import scatter_noise
+
+from ..conftest import DATA
 
 
 def _row(name, lr, p=1e-9):
@@ -151,3 +156,17 @@ def test_a_named_held_parameter_says_a_measured_value_outranks_it():
     assert "slope is named at 0.0251 where the parameter file says 0.0262" in note
     damper = Candidate("effects.hip_damping", "effect", 0.0, (0.0, 1.0), 1, 2e-4, False)
     assert parameter_note({"effect": damper.name, "estimate": {damper.name: 1e-4}}, damper) == ""
+
+
+def test_the_default_candidates_are_the_librarys_effects_not_the_port_terms():
+    """diagnose's default causes are the library's eight effects, as before the dictionary of port
+    terms joined the registry; a port term is a candidate where it is named."""
+    params = load_params(DATA / "params" / "stable-toy.toml")
+    effects = [c.name for c in candidates(params) if c.kind == "effect"]
+    assert effects == ["effects.hip_damping", "effects.hip_coulomb", "effects.rolling_resistance",
+                       "effects.pivot_friction", "effects.impact_trailing_share",
+                       "effects.impact_spin_arrest", "effects.asymmetry", "effects.cross_slope"]
+    assert any(e.port_only for e in EFFECTS.values())  # the check can fail: port terms are registered
+    named = candidates(params, effects=["hinge_stiffness", "impact_lean_arrest"], parameters=[])
+    assert [c.name for c in named] == ["effects.hinge_stiffness", "effects.impact_lean_arrest"]
+    assert named[0].prior_sd == EFFECTS["hinge_stiffness"].typical

@@ -107,6 +107,20 @@ def test_the_hinge_spring_shortens_the_step_and_keeps_the_energy():
     assert summary["status"] == "completed"
 
 
+def test_the_hinge_spring_is_the_port_dictionarys_hinge_stiffness():
+    """The test-only spring is the physics of the library's port-only term ``hinge_stiffness``
+    (the hinge port's angle form, not a default cause of diagnose): at the same stiffness the
+    gaits agree (the same expressions, in the virtual machine there and compiled here: 1e-12)."""
+    _, summary = outside.hinge_spring_gaits(outside.STIFFNESS)
+    toy = load_params(outside.DATA / "stable-toy.toml")
+    start = solve_fixed_point(Walker(toy), np.array(outside.STABLE_START)).fixed_point
+    walker = Walker(toy.replace(**{"effects.hinge_stiffness": outside.STIFFNESS}))
+    gait = solve_fixed_point(walker, start)
+    assert summary["step_time"] == pytest.approx(gait.step_time, rel=1e-12, abs=0)
+    np.testing.assert_allclose(summary["fixed_point"], gait.fixed_point, rtol=0, atol=1e-10)
+    assert not EFFECTS["hinge_stiffness"].breaks_symmetry and EFFECTS["hinge_stiffness"].port_only
+
+
 def test_the_hinge_spring_walk_is_the_seeds():
     """The noisy walk: 20 heel strikes; the start's perturbation drawn in the fresh interpreter
     and the noise here from one seed, so the walk is its noise-free walk plus exactly the seed's
