@@ -3,9 +3,10 @@ of the step, measured on renders of the walker (tracking/accuracy_phase.py).
 
 The walker's gait (from P.toml) is rendered ``--walks`` times as the video was filmed (``--like``
 reads its frame rate and size, and, where ``render`` made it, its noise level and marker layout;
-options given override them), each render tracked back and compared with its truth. The result,
-A.json, is read by ``toywalk track V.mp4 --accuracy A.json``, which removes the tracker's bias by
-phase of the step and widens the SDs by what the calibration could not pin down. The rendered
+options given override them), on ramps a little shallower and steeper in turn, each render tracked
+back and compared with its truth. The result, A.json, is read by ``toywalk track V.mp4 --accuracy
+A.json``, which carries the tracker's bias by phase of the step as an error shared by that phase
+of every step and widens the SDs. The rendered
 videos stay in ``A.walks/`` beside A.json, the calibration's evidence.
 """
 
@@ -71,9 +72,9 @@ def describe_phase_errors(errors) -> str:
     big = errors.largest()
     name, worst = max(big.items(), key=lambda kv: abs(kv[1]["bias"]))
     side = "left" if worst["foot"] == "L" else "right"
-    return (f"largest bias {math.degrees(worst['bias']):+.3f} deg ({math.degrees(worst['se']):.3f} SE) in "
-            f"{name} at {worst['phase']:.2f} of a {side}-stance step; heel-strike time_sd times "
-            f"{errors.timing_scale:.2f}")
+    return (f"largest bias {math.degrees(worst['bias']):+.3f} deg (walk to walk "
+            f"{math.degrees(worst['sd']):.3f}) in {name} at {worst['phase']:.2f} of a {side}-stance step; "
+            f"heel-strike time_sd times {errors.timing_scale:.2f}")
 
 
 def cmd_accuracy(args) -> int:
