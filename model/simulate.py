@@ -212,7 +212,7 @@ def _mirror(z: np.ndarray, sign: float) -> np.ndarray:
 
 
 def gait_walk(params: Params, steps: int, *, noise: float = 0.0, position_noise: float = 0.0, seed=None,
-              source: str = "", progress: bool = False):
+              source: str = "", progress: bool = False, z_guess=None):
     """The walker's gait walked ``steps`` steps from its fixed point
     (:func:`toywalk.model.gait.find_gait`) as a trajectory file holds it (``toywalk simulate``):
     a :class:`toywalk.model.trajectory.TrajectoryTable` with the contacts, the heel strikes (the
@@ -221,7 +221,8 @@ def gait_walk(params: Params, steps: int, *, noise: float = 0.0, position_noise:
 
     ``noise`` (rad) adds white noise of that SD to the angles and ``*_sd`` columns saying so;
     ``position_noise`` (m) does so to the strikes' contact positions, as a tracker would measure
-    them; both drawn from ``seed``. Raises :class:`toywalk.model.gait.GaitNotFound` where the
+    them; both drawn from ``seed``. ``z_guess`` is a start near the gait (a nearby walker's fixed
+    point), else the gait search's own. Raises :class:`toywalk.model.gait.GaitNotFound` where the
     walker has no gait.
     """
     import math
@@ -231,7 +232,7 @@ def gait_walk(params: Params, steps: int, *, noise: float = 0.0, position_noise:
     from .parameters import PARAMETER_NAMES
     from .trajectory import TrajectoryTable
 
-    gait = find_gait(params)
+    gait = find_gait(params, z_guess=z_guess)
     traj = simulate(params, gait.fixed_point, steps, planar=gait.planar, progress=progress)
     rng = np.random.default_rng(seed)
     signals = traj.angles()

@@ -99,6 +99,14 @@ def cmd_diagnose(args) -> int:
         print(f"held-out chi-square {g['base']:.1f} -> {g['extended']:.1f}; max |eigenvalue| "
               f"{g['max_abs_eigenvalue']['base']:#.4g} -> {g['max_abs_eigenvalue']['extended']:#.4g}")
     _print_next_walk(result)
+    if result.missing_force is not None:
+        from toywalk.sysid.missing_force import term_sentence
+
+        found = result.missing_force
+        for term in found.terms:
+            print(f"missing force: {term_sentence(term)}")
+        if not found.terms:
+            print(f"missing force: no term of the port dictionary singled out ({found.stop})")
     print(f"report -> {out / 'report.md'}")
     return 0
 

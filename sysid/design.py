@@ -39,8 +39,8 @@ from toywalk.model.parameters import Params
 from toywalk.model.trajectory import TrajectoryTable
 from toywalk.model.walker import STATE_NAMES
 
-from .discrepancy import FitPool, run_fits
 from .fit import FitError, FitResult, fit, held_jacobian
+from .heldout import FitPool, run_fits
 from .naming import ALPHA, SEPARATION, Candidate, lr_p_value
 from .walks import stacked
 
@@ -224,7 +224,7 @@ def next_walk(tables: Sequence[TrajectoryTable], bases: Sequence[FitResult],
         Each tied cause (a candidate's name) -> its fitted change from the base value.
     conditions : sequence of Condition
     pool : FitPool or int
-        Where the further walks' fits run (:func:`toywalk.sysid.discrepancy.run_fits`).
+        Where the further walks' fits run (:func:`toywalk.sysid.heldout.run_fits`).
     draws, alpha, rng
         As :func:`separation`.
     **fit_options

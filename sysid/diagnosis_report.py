@@ -170,6 +170,8 @@ def _markdown(d: Diagnosis) -> str:
     lines += ["", "![candidates](candidates.png)", ""]
     if d.next_walk:
         lines += _next_walk_markdown(d.next_walk)
+    if d.missing_force is not None:
+        lines += missing_force_markdown(d.missing_force)
     if d.gain:
         g = d.gain
         lines += ["## Gain", "", f"{g['metric']}: base {g['base']:.1f}, extended {g['extended']:.1f}.",
@@ -181,6 +183,33 @@ def _markdown(d: Diagnosis) -> str:
         lines += ["", f"Predicted stability: max |eigenvalue| {eig['base']:#.4g} (base) -> "
                       f"{eig['extended']:#.4g} (extended).", ""]
     return "\n".join(lines) + "\n"
+
+
+def missing_force_markdown(found) -> list[str]:
+    """The report's section on the shape of the missing force (sysid/missing_force.py)."""
+    from .missing_force import RULE, term_sentence
+
+    lines = ["## The shape of the missing force", "",
+             "No cause of the library explains the walk, so the dictionary of generalised forces at "
+             "the walker's ports (docs/formats.md, \"Ports and forms\") was searched through the fit.", ""]
+    if found.terms:
+        lines += ["The walk selects, in this order (coefficients of the model with all of them, 95 %):", ""]
+        lines += [f"{k}. {term_sentence(t)}; held-out gain {t['held_out_gain']:.1f}"
+                  for k, t in enumerate(found.terms, start=1)]
+        g = found.gain
+        eig = g["max_abs_eigenvalue"]
+        lines += ["", f"{g['metric']}: base {g['base']:.1f}, with the terms {g['selected']:.1f}. "
+                  f"Predicted stability: max |eigenvalue| {eig['base']:#.4g} (base) -> "
+                  f"{eig['selected']:#.4g}.", ""]
+    else:
+        lines += ["No term of the dictionary is singled out.", ""]
+    lines += [f"Stopped: {found.stop}.", "", "| step | term | score z | LR | LR p |", "|---|---|---|---|---|"]
+    for k, step in enumerate(found.steps, start=1):
+        for r in step["tried"]:
+            lines.append(f"| {k} | {r['parameter']} | {r['score_z']:+.2f} | {r['lr']:.1f} | "
+                         f"{r['lr_p']:.2g} |")
+    lines += ["", f"Rule: {RULE}.", ""]
+    return lines
 
 
 def _next_walk_markdown(further: dict) -> list[str]:

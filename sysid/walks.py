@@ -37,18 +37,7 @@ import numpy as np
 from toywalk.model.parameters import Params
 from toywalk.model.trajectory import SIGNALS, TrajectoryTable
 
-from .discrepancy import (
-    EXPLAINS,
-    FitPool,
-    _further_evidence,
-    _masked,
-    _strides,
-    chosen_model,
-    held_out_fits,
-    held_out_score,
-    run_fits,
-    weigh_ties,
-)
+from .discrepancy import EXPLAINS, _further_evidence, chosen_model, weigh_ties
 from .fit import (
     _STAGE_PATH,
     CONTACT_KEYS,
@@ -62,6 +51,7 @@ from .fit import (
     held_jacobian,
     score_statistics,
 )
+from .heldout import FitPool, held_out_fits, held_out_score, masked, run_fits, strides
 from .measurement import observations
 from .naming import (
     ALPHA,
@@ -403,13 +393,13 @@ WALKS_RULE = ("adequate: no candidate's score test below alpha/K and no walk wit
 def held_out_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], fit: WalksFit,
                    workers: int = 1, scheduler: str | None = None, **fit_options) -> dict:
     """Held-out prediction grouped by stride for several walks fitted together: the alternate
-    strides of every walk form two folds (:func:`toywalk.sysid.discrepancy.held_out_tasks`, walk
+    strides of every walk form two folds (:func:`toywalk.sysid.heldout.held_out_tasks`, walk
     by walk); the walks are fitted together on one fold (the other's samples kept with a huge SD,
     so the model is read at them without their weighing in) and predict the other's angles, both
     ways round, each walk's residuals weighed by its noise in ``fit``. Each fold's fit starts from
     ``fit`` (the same free parameters, on all the samples); one that fails is refitted from the
     other fold's, or from the walks' files when neither converged (the single walk's rule,
-    :func:`toywalk.sysid.discrepancy.held_out_fits`; the two folds in ``workers`` processes or on
+    :func:`toywalk.sysid.heldout.held_out_fits`; the two folds in ``workers`` processes or on
     a Dask cluster, ``scheduler``), and a fold that still fails leaves the chi-square NaN with the
     reason.
 
@@ -417,7 +407,7 @@ def held_out_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], 
     -------
     dict
         ``chi2`` (held-out, all walks), ``by_walk`` (each walk's), ``scores`` (each walk's
-        :func:`toywalk.sysid.discrepancy.held_out_score`), ``success``, ``reason``.
+        :func:`toywalk.sysid.heldout.held_out_score`), ``success``, ``reason``.
     """
     tasks = _held_out_walk_tasks(tables, params, fit, **fit_options)
     return _held_out_walk_score(tables, fit, held_out_fits(tasks, workers, scheduler, _fit_walks_or_reason))
@@ -430,11 +420,11 @@ def _held_out_walk_tasks(tables, params, fit: WalksFit, **fit_options) -> list[d
     obs = [observations(t) for t in tables]
     tasks = []
     for fold in (0, 1):
-        masked = []
+        folds = []
         for table, o, walk in zip(tables, obs, fit.walks, strict=True):
             sd = {n: float(walk.noise_sd[n]) for n in SIGNALS if n in walk.noise_sd}
-            masked.append(_masked(table, o, np.flatnonzero(_strides(o.n_steps) == fold), sd))
-        tasks.append(dict(tables=masked, params=list(params), free=list(fit.free), warm=fit, **fit_options))
+            folds.append(masked(table, o, np.flatnonzero(strides(o.n_steps) == fold), sd))
+        tasks.append(dict(tables=folds, params=list(params), free=list(fit.free), warm=fit, **fit_options))
     return tasks
 
 

@@ -283,7 +283,9 @@ SLOPE_FACTORS = (1.0, 0.95, 1.05, 0.9, 1.1)
 
 
 def walk_variant(params, k: int):
-    """The walker of calibration walk ``k``: its slope times :data:`SLOPE_FACTORS` in turn."""
+    """The walker of calibration walk ``k``: its slope times :data:`SLOPE_FACTORS` in turn (a ramp
+    on which the walker has no gait near its own is replaced by its own ramp, and the file says
+    so: ``slopes_without_gait``)."""
     return params.replace(slope=float(params.slope) * SLOPE_FACTORS[k % len(SLOPE_FACTORS)])
 
 
@@ -301,7 +303,7 @@ def measure_by_rendering(params, folder: str | Path, *, walks: int = 3, steps: i
 
     Raises AccuracyError where the walker has no gait or a walk cannot be rendered or tracked.
     """
-    from ..model.gait import GaitNotFound
+    from ..model.gait import GaitNotFound, find_gait
     from ..model.simulate import gait_walk
     from .markers import default_layout
     from .render import RenderError, RenderOptions, default_filming, params_record, render
@@ -316,12 +318,21 @@ def measure_by_rendering(params, folder: str | Path, *, walks: int = 3, steps: i
         raise AccuracyError(str(err).splitlines()[0]) from err
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    pairs, slopes = [], []
+    try:
+        start = find_gait(params).fixed_point
+    except GaitNotFound as err:
+        raise AccuracyError(f"the walker has no gait to film: {str(err).splitlines()[0]}") from err
+    pairs, slopes, skipped = [], [], []
     for k in range(walks):
         walker = walk_variant(params, k)
         video = folder / f"walk{k}.mp4"
         try:
-            walk = gait_walk(walker, steps, source="toywalk accuracy")
+            walk = gait_walk(walker, steps, source="toywalk accuracy", z_guess=start)
+        except GaitNotFound:  # a ramp too far from the walker's: its own ramp again instead
+            skipped.append(float(walker.slope))
+            walker = params
+            walk = gait_walk(walker, steps, source="toywalk accuracy", z_guess=start)
+        try:
             shot, path, placed = ((camera, None, None) if given
                                   else default_filming(walk, walker, *size, options))
             shown = layout if layout is not None else (placed or default_layout(walker))
@@ -329,9 +340,6 @@ def measure_by_rendering(params, folder: str | Path, *, walks: int = 3, steps: i
                             source="toywalk accuracy: the walker's gait")
             tracked, _ = track_video(video, dataclasses.replace(shot, ramp_pose=None), shown,
                                      hip_width=hip_width)
-        except GaitNotFound as err:
-            raise AccuracyError(f"calibration walk {k + 1} (slope {walker.slope:.4g} rad) has no gait: "
-                                f"{str(err).splitlines()[0]}") from err
         except (RenderError, TrackError) as err:
             raise AccuracyError(f"calibration walk {k + 1}: {str(err).splitlines()[0]}") from err
         pairs.append((tracked.table(), read_trajectory(result.paths["truth"])))
@@ -339,7 +347,8 @@ def measure_by_rendering(params, folder: str | Path, *, walks: int = 3, steps: i
         if progress is not None:
             progress(k + 1, walks)
     source = {"walker": params_record(params), "effects": dict(params.effects), "steps": steps,
-              "slopes": slopes, "seeds": [seed + k for k in range(walks)], "fps": float(fps),
+              "slopes": slopes, "slopes_without_gait": skipped, "seeds": [seed + k for k in range(walks)],
+              "fps": float(fps),
               "noise_level": noise, "size": list(shot.size),
               "camera": "given" if given else "placed for each walk as render places it",
               "layout": shown.description, "folder": str(folder)}

@@ -7,7 +7,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 from toywalk.model.parameters import load_params
-from toywalk.sysid import discrepancy
+from toywalk.sysid import discrepancy, heldout
 from toywalk.sysid.diagnosis_report import write_diagnosis
 from toywalk.sysid.discrepancy import candidates, diagnose
 from toywalk.sysid.fit import score_tests
@@ -126,9 +126,9 @@ def test_a_failed_fold_fit_is_retried_and_never_scored(monkeypatch):
         calls.append(tasks)
         return list(first) if len(calls) == 1 else [_fold_fit(True, f"retry {k}") for k in range(len(tasks))]
 
-    monkeypatch.setattr(discrepancy, "run_fits", fake_run_fits)
+    monkeypatch.setattr(heldout, "run_fits", fake_run_fits)
     tasks = [{"fold": k, "params": "model", "warm": "whole walk"} for k in range(4)]
-    fits = discrepancy.held_out_fits(tasks)
+    fits = heldout.held_out_fits(tasks)
     retried = calls[1]
     assert [t["fold"] for t in retried] == [1, 2, 3]
     assert retried[0]["warm"] is first[0] and retried[0]["params"] == "params of base 0"
@@ -140,10 +140,10 @@ def test_a_failed_fold_fit_is_retried_and_never_scored(monkeypatch):
     calls.clear()
     joint = [SimpleNamespace(**{k: v for k, v in vars(f).items() if k != "params"}) for f in first]
     first[:] = joint
-    discrepancy.held_out_fits([{"fold": k, "warm": "whole walks"} for k in range(4)], runner=print)
+    heldout.held_out_fits([{"fold": k, "warm": "whole walks"} for k in range(4)], runner=print)
     assert calls[1][0] == {"fold": 1, "warm": joint[0]} and calls[1][1]["warm"] is None
     # scoring: a fold that did not converge leaves no chi-square, and says why
-    score = discrepancy.held_out_score(_walk_table(), [first[0], first[1]], {})
+    score = heldout.held_out_score(_walk_table(), [first[0], first[1]], {})
     assert np.isnan(score["chi2"]) and not score["success"]
     assert "fold 1's fit ended with Restoration_Failed" in score["reason"]
 
@@ -216,16 +216,16 @@ def test_an_analysis_starts_its_processes_once(monkeypatch):
         with worker_pool(workers, scheduler) as pool:
             yield pool
 
-    monkeypatch.setattr(discrepancy, "worker_pool", counted)
-    with discrepancy.FitPool(2) as pool:
-        assert discrepancy.run_fits([-3], pool, runner=abs) == [3] and not pool.started
-        assert discrepancy.run_fits([-1, -2, 5], pool, runner=abs) == [1, 2, 5]
-        pids = set(discrepancy.run_fits([0] * 6, pool, runner=_pid))
+    monkeypatch.setattr(heldout, "worker_pool", counted)
+    with heldout.FitPool(2) as pool:
+        assert heldout.run_fits([-3], pool, runner=abs) == [3] and not pool.started
+        assert heldout.run_fits([-1, -2, 5], pool, runner=abs) == [1, 2, 5]
+        pids = set(heldout.run_fits([0] * 6, pool, runner=_pid))
         assert started == [2] and pool.started
     assert not pool.started
     assert len(pids) <= 2 and os.getpid() not in pids  # the batches ran in the pool's processes
     # without an analysis's pool, each batch starts its own, sized to the batch
-    assert discrepancy.run_fits([-1, -2], 3, runner=abs) == [1, 2] and started == [2, 2]
+    assert heldout.run_fits([-1, -2], 3, runner=abs) == [1, 2] and started == [2, 2]
 
 
 def _pid(_task) -> int:

@@ -4,7 +4,6 @@ are widened by what the bias's estimate leaves open, strike times' SDs are scale
 back as written, and a file that is not one is refused in one line."""
 
 import json
-import math
 import subprocess
 
 import numpy as np
