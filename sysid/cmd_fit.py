@@ -116,8 +116,9 @@ def cmd_fit(args) -> int:
               "a direction they share; no standard error is given; see the warnings)", file=sys.stderr)
     gait = result.gait
     if gait:
-        scuffs = describe_scuffs(gait["scuffs"], len(gait["step_times"]), gait["swing_clearance"],
-                                 CLEARANCE_RESOLUTION * result.params.leg_length)
+        scuffs = "" if gait["scuffs"] is None else describe_scuffs(
+            gait["scuffs"], len(gait["step_times"]), gait["swing_clearance"],
+            CLEARANCE_RESOLUTION * result.params.leg_length)
         print(f"fitted gait: {gait['map']} map, max |eigenvalue| {gait['max_abs_eigenvalue']:#.4g} "
               f"({'stable' if gait['stable'] else 'unstable'})" + (f"; {scuffs}" if scuffs else ""))
     rms = ", ".join(f"{k} {math.degrees(v):.3g} deg" for k, v in result.residual_rms.items()

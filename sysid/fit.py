@@ -53,7 +53,7 @@ from toywalk.model.effects import EFFECTS
 from toywalk.model.gait import GaitNotFound, _lateral_singular, find_gait, solve_fixed_point
 from toywalk.model.parameters import INPUT_NAMES, PARAMETER_NAMES, ParameterError, Params
 from toywalk.model.trajectory import SIGNALS, TrajectoryTable
-from toywalk.model.walker import STATE_NAMES, Walker, is_planar_symmetric
+from toywalk.model.walker import STATE_NAMES, StepFailure, Walker, is_planar_symmetric
 
 from .measurement import (
     OFFSETS,
@@ -1209,10 +1209,16 @@ class _Problem:
         z0 = walker.to_public(np.r_[w[1:1 + prob.n_dyn], np.zeros(walker.lay.nx - prob.n_dyn)])
         times = [float(w[prob.duration_index(j)]) for j in range(prob.phases)]
         # the swing foot over the cycle, as `toywalk gait` reports it (scuffs before the legs pass)
-        steps = walker.cycle(z0, record=True).steps
-        lowest = min(float(st.swing.minimum) for st in steps)
+        scuffs = lowest = None
+        try:
+            steps = walker.cycle(z0, record=True).steps
+            scuffs, lowest = int(sum(st.scuffs for st in steps)), min(float(st.swing.minimum) for st in steps)
+        except StepFailure as err:  # the BVP's gait, which the simulator cannot follow through a step
+            notes.append(f"the fitted walker's gait, simulated from its fixed point, {err.status} ({err}): "
+                         "its swing clearance is not known, and the fit may have found a gait the walker "
+                         "does not walk")
         return {
-            "scuffs": int(sum(st.scuffs for st in steps)), "swing_clearance": lowest,
+            "scuffs": scuffs, "swing_clearance": lowest,
             "map": "step" if prob.phases == 1 else "stride",
             "fixed_point": dict(zip(STATE_NAMES, map(float, z0), strict=True)),
             "step_times": times,
