@@ -6,7 +6,7 @@ The step's stance leg is the foot that landed at its first strike. :func:`operat
 model at the measured phases (each step aligned on its measured strikes, taken as exact);
 :class:`Timing` reads it between the model's own strikes (below), which is what the fit does.
 
-The model describes a step in the mirrored description of model.md section 4 (the stance leg as
+The model describes a step in the mirrored description of docs/model.md section 4 (the stance leg as
 the left one). A step with the physical right leg in stance is mirrored back: lean and steer
 change sign. The stance leg's pitch is ``theta_st`` and the swing leg's ``theta_sw``. A
 step-periodic gait (one model step) serves every measured step; a stride-periodic one (effects that

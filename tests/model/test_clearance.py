@@ -88,7 +88,7 @@ def test_swing_clearance_does_not_depend_on_the_grid(stable_gait):
 
 
 def test_feet_on_one_line_cannot_clear():
-    """model.md section 6: a walker with w = 0 runs both feet on one line. The seed's point feet
+    """docs/model.md section 6: a walker with w = 0 runs both feet on one line. The seed's point feet
     pass through each other as the legs pass (height 0 there, to the passing instant's tolerance
     1e-10 l), so the clearance over the whole swing is at most 0."""
     params = load_params(DATA / "params" / "seed-pointfoot.toml")

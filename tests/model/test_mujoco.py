@@ -117,7 +117,7 @@ def test_the_build_follows_the_model_over_a_step(clearing_gait):
 
 
 def test_the_walk_records_the_models_angles(clearing_gait, clearing_walk):
-    """walk_in_mujoco's angle record, in the model's conventions (model.md section 1: lean psi,
+    """walk_in_mujoco's angle record, in the model's conventions (docs/model.md section 1: lean psi,
     steer phi, each leg's pitch, physical frame). At t = 0 the angles read back from MuJoCo's leg
     frames are z0's, exactly up to round-off (measured 2.8e-17 rad; tolerance 1e-9 rad), with the
     left foot in stance at the origin. Over the first step, until the earlier of the two heel
