@@ -218,7 +218,7 @@ class Gait(Stability):
         return [(STATE_NAMES[i], float(share[i])) for i in order]
 
     def summary(self) -> dict:
-        """JSON-ready summary (keys of pipeline.md's ``toywalk gait --json``)."""
+        """JSON-ready summary (the keys of ``toywalk gait --json``, docs/cli.md)."""
         return {
             "status": self.status,
             "planar": self.planar,

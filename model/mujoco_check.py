@@ -36,7 +36,7 @@ The walk's angles are read from the two legs' orientations with the model's own 
 (:func:`~toywalk.model.kinematics.angles_from_rotations`, docs/model.md section 1): the left leg's
 frame is ``Rz(steer) Rx(lean) Ry(pitch_left)`` and the right leg's is that times the hinge's
 ``Ry(pitch_right - pitch_left)``, so steer, lean and both pitches come back exactly, in the physical
-(unmirrored) frame. :func:`mujoco_trajectory` writes them in the trajectory format (pipeline.md),
+(unmirrored) frame. :func:`mujoco_trajectory` writes them in the trajectory format (docs/formats.md),
 for ``toywalk fit`` and ``toywalk diagnose`` to read as data.
 """
 
@@ -529,7 +529,7 @@ def _foot_position(data, model, body: int, params: Params, foot: _Foot) -> np.nd
 
 
 def mujoco_trajectory(walk: MujocoWalk, params: Params, parameters: str | None = None) -> TrajectoryTable:
-    """A MuJoCo walk as a trajectory (pipeline.md, "Files"), as ``toywalk simulate`` writes one.
+    """A MuJoCo walk as a trajectory (docs/formats.md, "Trajectory"), as ``toywalk simulate`` writes one.
 
     The columns are the walk's samples (``time, lean, steer, pitch_left, pitch_right, stance``
     and the stance foot's ``contact_x, contact_y``), exact, without ``*_sd`` columns; the events

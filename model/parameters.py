@@ -1,9 +1,10 @@
 """The walker's physical parameters: a typed, immutable set with SI units, read from and written to TOML.
 
-Names, meanings and units follow ``docs/model.md`` section 2 and the parameter file shape of
-``shared/design/pipeline.md``. Every quantity is a plain float (or a fixed-length tuple of floats), so
-that a parameter set flattens to one vector (:meth:`Params.vector`) that the compiled equations of
-motion take as a symbolic input: one compiled function serves every parameter set and foot shape.
+Names, meanings and units follow ``docs/model.md`` section 2, and the file's shape is the one of
+``docs/formats.md``, "Parameters". Every quantity is a plain float (or a fixed-length tuple of
+floats), so that a parameter set flattens to one vector (:meth:`Params.vector`) that the compiled
+equations of motion take as a symbolic input: one compiled function serves every parameter set and
+foot shape.
 """
 
 from __future__ import annotations
@@ -458,7 +459,8 @@ def _set_flat(data: dict[str, Any], name: str, value: Any) -> None:
 
 
 def load_params(path: str | Path) -> Params:
-    """Read a parameter TOML file (pipeline.md shape). Raises :class:`ParameterError` naming the field."""
+    """Read a parameter TOML file (docs/formats.md, "Parameters"). Raises :class:`ParameterError`
+    naming the field."""
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")  # TOML files are UTF-8 (toml.io)

@@ -275,7 +275,7 @@ class FitResult:
     periodicity: PeriodicityTest | None = dataclasses.field(repr=False, default=None)
 
     def to_json(self) -> dict:
-        """JSON-ready dictionary (pipeline.md's fit file: estimates, std, covariance, ...; the
+        """JSON-ready dictionary (the fit file of docs/formats.md, "Fit": estimates, std, covariance, ...; the
         ``periodicity`` test where one chose the model)."""
         out = {
             "status": self.status, "success": self.success, "iterations": self.iterations,
@@ -469,7 +469,7 @@ def fit(table: TrajectoryTable, params: Params, free, *, model: str = "periodic"
     ----------
     table : TrajectoryTable
         The measured walk (``toywalk track`` or ``toywalk simulate`` output, or any file in the
-        pipeline.md format); a simulation's ``source`` metadata is never read.
+        trajectory format of docs/formats.md); a simulation's ``source`` metadata is never read.
     params : Params
         The walker: the starting point, and the values of everything not free.
     free : sequence of str

@@ -1,6 +1,6 @@
 """The measurement model: what a model gait or walk predicts for each measured sample.
 
-A measured walk (a trajectory file, pipeline.md) is cut into steps at its heel strikes. Within a
+A measured walk (a trajectory file, docs/formats.md) is cut into steps at its heel strikes. Within a
 step, a sample's measured **phase** is ``(t - t_strike) / (t_next_strike - t_strike)`` in [0, 1).
 The step's stance leg is the foot that landed at its first strike. :func:`operator` reads the
 model at the measured phases (each step aligned on its measured strikes, taken as exact);

@@ -241,7 +241,7 @@ def section_states(table: TrajectoryTable, phase: float = 0.5, width: float = 0.
     Parameters
     ----------
     table : TrajectoryTable
-        A measured walk (pipeline.md's trajectory format) with its heel strikes.
+        A measured walk (the trajectory format of docs/formats.md) with its heel strikes.
     phase : float
         Section phase within the step, in [0, 1] (0 = heel strike).
     width : float
@@ -658,7 +658,7 @@ def return_map(table: TrajectoryTable, phase: float = 0.5, *, kind: str = "strid
     Parameters
     ----------
     table : TrajectoryTable
-        A measured walk with its heel strikes (pipeline.md's trajectory format).
+        A measured walk with its heel strikes (the trajectory format of docs/formats.md).
     phase : float
         Section phase within the step, in [0, 1] (default mid-step).
     kind : {'stride', 'step'}

@@ -1,4 +1,4 @@
-"""The marker layout: which ArUco markers are stuck where on the walker and the ramp (pipeline.md).
+"""The marker layout: which ArUco markers are stuck where on the walker and the ramp (docs/formats.md).
 
 A layout file is JSON::
 

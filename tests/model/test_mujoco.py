@@ -193,7 +193,7 @@ def test_the_clearing_walker_walks_30_steps_in_mujoco(clearing_gait, clearing_wa
 
 
 def test_the_walk_is_a_trajectory_the_fit_reads(tmp_path, clearing_gait, clearing_walk):
-    """mujoco_trajectory writes the walk as `toywalk simulate` writes one (pipeline.md, "Files"):
+    """mujoco_trajectory writes the walk as `toywalk simulate` writes one (docs/formats.md, "Trajectory"):
     the columns of the model's simulation, the heel strikes after the start as events with their
     contact positions, metadata naming MuJoCo and its settings. It survives write_trajectory and
     read_trajectory exactly (repr'd floats), and sysid.measurement.observations cuts it into the
