@@ -8,7 +8,7 @@ event machinery (root of the dense output), applies :meth:`Walker.collide` and o
 by central finite differences of the whole step map.
 
 Heel strike is the swing foot's lowest point reaching the ramp, moving down, *after* the swing foot
-has passed in front of the stance foot (model.md section 4). Earlier touches while the legs pass
+has passed in front of the stance foot (docs/model.md section 4). Earlier touches while the legs pass
 (scuffing; the simplest walker's point foot always dips below the ramp there) must be ignored. A
 single event "h if ahead > 0 else 1" is discontinuous where the foot passes the stance foot, and
 the root finder would report that jump as a heel strike whenever the foot is below the ramp at that

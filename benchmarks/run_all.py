@@ -52,7 +52,7 @@ PUBLISHED_EIGENVALUES = np.array([
     0.0,
 ])
 PUBLISHED_STEP_TIME = 3.8824637528506
-# Garcia's convention -> ours (model.md section 1): theta_st = -theta, theta_st_dot = -theta_dot,
+# Garcia's convention -> ours (docs/model.md section 1): theta_st = -theta, theta_st_dot = -theta_dot,
 # theta_sw = theta_st + phi, theta_sw_dot = theta_st_dot + phi_dot.
 PUBLISHED_FIXED_POINT = np.array([
     0, 0, 0, 0,

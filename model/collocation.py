@@ -1,6 +1,6 @@
 """Periodic gaits as boundary value problems, solved by direct collocation with IPOPT.
 
-One step is a two-point boundary value problem on [0, T] with free duration T (model.md section 5):
+One step is a two-point boundary value problem on [0, T] with free duration T (docs/model.md section 5):
 the equations of motion on the interval, the guard ``h(x(T)) = 0`` at the end (with the swing foot
 ahead of the stance foot and moving down), and ``x(0) = mirror(collision(x(T)))``. Time is scaled
 to tau = t / T in [0, 1], cut into ``n_intervals`` equal intervals, each with a Lagrange polynomial
@@ -302,9 +302,9 @@ def contact_travel(prob: BVP) -> ca.Function:
     """``(w, p) -> (rolled, jump)``: the stance contact's travel on each mesh interval,
     ``rolled`` shape (2, phases * n_int) (interval ``k`` of step ``j`` in column ``j * n_int +
     k``), and the collision's jump from the old contact to the new one at each step's end,
-    ``jump`` shape (2, phases) (m, each step's own mirrored ramp frame; model.md section 4).
+    ``jump`` shape (2, phases) (m, each step's own mirrored ramp frame; docs/model.md section 4).
 
-    An interval's travel is the integral of the travel rates of the equations of motion (model.md
+    An interval's travel is the integral of the travel rates of the equations of motion (docs/model.md
     section 3) by the collocation's own Gauss-Legendre quadrature (exact to the collocation's
     order). Each output depends on one interval's (or one end state's) unknowns only, so the
     derivatives stay as sparse as the BVP's. A planar system has no sideways component (0).
@@ -344,7 +344,7 @@ def contact_travel(prob: BVP) -> ca.Function:
 def step_displacements(prob: BVP) -> ca.Function:
     """``(w, p) -> D``, shape (2, phases): each step's advance of the stance contact, from the
     contact at its first heel strike to the new one at its end (m, the step's own mirrored ramp
-    frame: a step with the right leg in stance has its sideways component negated; model.md
+    frame: a step with the right leg in stance has its sideways component negated; docs/model.md
     section 4, as :attr:`toywalk.model.walker.Step.contact`): the rolled travel of its mesh
     intervals plus the collision's jump (:func:`contact_travel`)."""
     w = ca.MX.sym("w", prob.phases * prob.phase_size)

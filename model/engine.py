@@ -198,7 +198,7 @@ def _kernel_functions(planar: bool, effects: bool) -> dict[str, ca.Function]:
     )
     # The energy each continuous effect dissipates over one integration step: the same
     # Runge-Kutta step of the system augmented with W' = D(x), so that E(t) - E(0) + W(t)
-    # vanishes to the integrator's accuracy (model.md section 6's energy accounting).
+    # vanishes to the integrator's accuracy (docs/model.md section 6's energy accounting).
     n_diss = base["dissipation"].size1_out(0)
     xw = ca.MX.sym("xw", nx + n_diss)
     rhs_aug = ca.Function("rhs_aug", [xw, p], [ca.vertcat(rhs(xw[:nx], p),

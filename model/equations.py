@@ -1,18 +1,18 @@
 """Symbolic kinematics, equations of motion, energy, guard and collision of the 3D walker.
 
-Everything is derived once, symbolically, in CasADi SX (model.md sections 1-4), with every physical
+Everything is derived once, symbolically, in CasADi SX (docs/model.md sections 1-4), with every physical
 quantity a symbolic input (the parameter input of :data:`toywalk.model.parameters.INPUT_NAMES`:
 the parameter vector with every effect's strength, and the side in stance), so that one compiled
 function serves every parameter set, foot shape and combination of effects. Each effect of
 :mod:`toywalk.model.effects` contributes its own terms through its hooks; ``effects=False`` builds
 the seed's model alone (for the benchmarks and the null checks), with the same inputs.
 
-Conventions (model.md section 1): slope frame S with x downhill, y left, z along the ramp normal;
+Conventions (docs/model.md section 1): slope frame S with x downhill, y left, z along the ramp normal;
 stance-leg orientation ``Rz(phi) Rx(psi) Ry(theta_st)``, swing leg ``Rz(phi) Rx(psi) Ry(theta_sw)``.
 The stance leg is always described as the left leg (its balance mass on the +b2 side); the swing leg
 is its mirror image. Generalised coordinates ``q = (phi, psi, theta_st, theta_sw)`` and speeds
 ``u = dq/dt``. The internal state is ``x = (q, u, x_C, y_C)`` (shape (10,)), the last two the stance
-contact point's travel on the ramp. The planar system (``phi = psi = 0`` held, model.md section 7)
+contact point's travel on the ramp. The planar system (``phi = psi = 0`` held, docs/model.md section 7)
 has ``q = (theta_st, theta_sw)`` and ``x = (q, u, x_C)`` with y_C = 0 omitted, shape (5,); see
 :class:`Layout`.
 
@@ -122,7 +122,7 @@ def _geometry(ctx: Context, effects: bool) -> dict[str, ca.SX]:
     r1 = ca.mtimes(rzx, _ry(th1))
     r2 = ca.mtimes(rzx, _ry(th2))
     n = ca.mtimes(rzx, ey)
-    # Lowest point of the foot's rim circle: t = unit(-e_z + (e_z . n) n) (model.md section 2).
+    # Lowest point of the foot's rim circle: t = unit(-e_z + (e_z . n) n) (docs/model.md section 2).
     # Written as -e_z + n_z n over sqrt(1 - n_z^2) = |that vector|, which is smooth while |n_z| < 1.
     nz = n[2]
     t = (-ez + nz * n) / ca.sqrt(1 - nz**2)

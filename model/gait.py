@@ -1,9 +1,9 @@
 """Symmetric period-one gaits by shooting (Newton on the step map), and their stability.
 
-A fixed point of the step map P (model.md section 4) is a symmetric gait. It is found by Newton's
+A fixed point of the step map P (docs/model.md section 4) is a symmetric gait. It is found by Newton's
 method on ``P(z) - z = 0`` with the exact AD Jacobian of :meth:`Walker.step`, damped by a
 backtracking line search. From no guess, :func:`find_gait` first solves the walker's planar
-reduction (d_y, I_xy, I_yz and w set to zero, phi = psi = 0; model.md section 5's advice) from a
+reduction (d_y, I_xy, I_yz and w set to zero, phi = psi = 0; docs/model.md section 5's advice) from a
 grid of starts, then follows the gait by natural-parameter continuation in a homotopy parameter
 s in [0, 1] from the planar-symmetric walker (s = 0) to the requested one (s = 1).
 
@@ -84,7 +84,7 @@ class Gait(Stability):
     planar : bool
         Solved in the planar reduction.
     fixed_point : ndarray, shape (8,)
-        State just after heel strike (public order, model.md section 1).
+        State just after heel strike (public order, docs/model.md section 1).
     step_time : float
         (s)
     step : Step
@@ -218,7 +218,7 @@ class Gait(Stability):
         return [(STATE_NAMES[i], float(share[i])) for i in order]
 
     def summary(self) -> dict:
-        """JSON-ready summary (keys of pipeline.md's ``toywalk gait --json``)."""
+        """JSON-ready summary (the keys of ``toywalk gait --json``, docs/cli.md)."""
         return {
             "status": self.status,
             "planar": self.planar,

@@ -1,4 +1,4 @@
-"""Leg poses from the walker's angles, and angles from leg poses (NumPy; model.md section 1).
+"""Leg poses from the walker's angles, and angles from leg poses (NumPy; docs/model.md section 1).
 
 These are the geometric conventions shared by the renderer and the tracker, in the physical
 (unmirrored) frame: both legs have ``R = Rz(steer) Rx(lean) Ry(pitch)`` in the ramp frame S, with
@@ -57,7 +57,7 @@ class LegPoses:
 def lowest_point_offset(params: Params, hip_axis: np.ndarray) -> np.ndarray:
     """C - O: a foot's lowest point C relative to the centre O of its torus (ramp frame, m).
 
-    The foot is a torus about the hip axis ``n`` (model.md section 2): its centre circle has radius
+    The foot is a torus about the hip axis ``n`` (docs/model.md section 2): its centre circle has radius
     ``foot_radius - foot_lateral_radius`` in the plane normal to ``n``, its tube radius
     ``foot_lateral_radius``. The lowest point lies below the centre circle's lowest point,
     ``C - O = (r - rho) t - rho e_z`` with ``t`` the unit vector of ``-e_z + (n . e_z) n`` (the
@@ -125,7 +125,7 @@ def leg_poses(params: Params, steer: float, lean: float, pitch_left: float, pitc
 def hip_axis_angles(b2: np.ndarray) -> tuple[float, float]:
     """(steer, lean) (rad) of a hip axis: the inverse of ``b2 = Rz(steer) Rx(lean) e_y``.
 
-    ``b2 = (-sin(steer) cos(lean), cos(steer) cos(lean), sin(lean))`` (model.md section 1), so
+    ``b2 = (-sin(steer) cos(lean), cos(steer) cos(lean), sin(lean))`` (docs/model.md section 1), so
     ``lean = asin(b2_z)`` and ``steer = atan2(-b2_x, b2_y)``.
 
     Parameters
@@ -142,7 +142,7 @@ def pitch_angle(local: np.ndarray) -> float:
     """The angle (rad) of a rotation about the y axis: the inverse of ``Ry(pitch)``.
 
     ``Ry(pitch)`` has ``sin(pitch)`` and ``cos(pitch)`` at [0, 2] and [2, 2]. A leg's pitch is
-    this of its rotation relative to ``Rz(steer) Rx(lean)`` (model.md section 1), e.g.
+    this of its rotation relative to ``Rz(steer) Rx(lean)`` (docs/model.md section 1), e.g.
     ``pitch_angle(rotation(steer, lean, 0).T @ r)``; for a measured rotation whose b2 axis differs
     slightly from the frame's, it is the pitch of its b3 axis projected on the frame's (b1, b3)
     plane.

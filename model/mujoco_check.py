@@ -8,7 +8,7 @@ that a physical walker could walk.
 
 The MuJoCo model (Todorov, Erez & Tassa, IROS 2012, doi:10.1109/IROS.2012.6386109):
 
-- the world is the slope frame S (model.md section 1): the ramp is the plane z = 0 and gravity is
+- the world is the slope frame S (docs/model.md section 1): the ramp is the plane z = 0 and gravity is
   ``g (sin(alpha), 0, -cos(alpha))``;
 - the left leg is a free body whose frame is the leg's body frame (origin at its hip point, b1
   forward, b2 along the axle, b3 up the leg); the right leg is its child, hinged about b2 at its hip
@@ -33,10 +33,10 @@ Heel strikes are read from the contacts: a foot's contact that begins after it h
 ramp, ahead of the other foot's, is a heel strike; any other new contact of a foot is a scuff.
 
 The walk's angles are read from the two legs' orientations with the model's own inverse
-(:func:`~toywalk.model.kinematics.angles_from_rotations`, model.md section 1): the left leg's
+(:func:`~toywalk.model.kinematics.angles_from_rotations`, docs/model.md section 1): the left leg's
 frame is ``Rz(steer) Rx(lean) Ry(pitch_left)`` and the right leg's is that times the hinge's
 ``Ry(pitch_right - pitch_left)``, so steer, lean and both pitches come back exactly, in the physical
-(unmirrored) frame. :func:`mujoco_trajectory` writes them in the trajectory format (pipeline.md),
+(unmirrored) frame. :func:`mujoco_trajectory` writes them in the trajectory format (docs/formats.md),
 for ``toywalk fit`` and ``toywalk diagnose`` to read as data.
 """
 
@@ -152,7 +152,7 @@ def _leg_inertial(params: Params, mirror: bool, with_axle: bool) -> tuple[float,
     """(mass, centre of mass, inertia tensor about it), in the leg's body frame (kg, m, kg m^2)."""
     d = np.array(params.com_offset, dtype=float)
     inertia = params.inertia_tensor().copy()
-    if mirror:  # the right leg is the mirror image (model.md section 2)
+    if mirror:  # the right leg is the mirror image (docs/model.md section 2)
         d[1] = -d[1]
         flip = np.diag([1.0, -1.0, 1.0])
         inertia = flip @ inertia @ flip
@@ -272,7 +272,7 @@ class MujocoWalk:
         integration step).
     angles : ndarray, shape (n_samples, 4)
         The walker's angles at those times (rad), columns :data:`~toywalk.model.trajectory.SIGNALS`:
-        lean (psi), steer (phi), pitch_left, pitch_right (model.md section 1), physical frame.
+        lean (psi), steer (phi), pitch_left, pitch_right (docs/model.md section 1), physical frame.
     stance : ndarray of str, shape (n_samples,)
         The foot of the last heel strike at or before each sample ('L' from the start).
     contact : ndarray, shape (n_samples, 2)
@@ -412,7 +412,7 @@ def walk_in_mujoco(params: Params, z0: np.ndarray, steps: int = 20, timestep: fl
     ----------
     params : Params
     z0 : ndarray, shape (8,)
-        The model's state just after a heel strike (model.md section 1), e.g. a gait's fixed point.
+        The model's state just after a heel strike (docs/model.md section 1), e.g. a gait's fixed point.
     steps : int
         Heel strikes to walk.
     timestep : float
@@ -529,7 +529,7 @@ def _foot_position(data, model, body: int, params: Params, foot: _Foot) -> np.nd
 
 
 def mujoco_trajectory(walk: MujocoWalk, params: Params, parameters: str | None = None) -> TrajectoryTable:
-    """A MuJoCo walk as a trajectory (pipeline.md, "Files"), as ``toywalk simulate`` writes one.
+    """A MuJoCo walk as a trajectory (docs/formats.md, "Trajectory"), as ``toywalk simulate`` writes one.
 
     The columns are the walk's samples (``time, lean, steer, pitch_left, pitch_right, stance``
     and the stance foot's ``contact_x, contact_y``), exact, without ``*_sd`` columns; the events

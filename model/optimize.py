@@ -7,7 +7,7 @@ Comput. J. 7:308, 1965) or use finite differences of gait features (``scipy.opti
 Each evaluation solves a fixed point by Newton's method warm-started from the last gait found
 (:func:`toywalk.model.gait.solve_fixed_point`), falling back to natural-parameter continuation
 from it (:func:`toywalk.model.gait.continue_gait`), so that consecutive evaluations stay on one gait
-branch (model.md section 5). Branches are told apart by step time: the evaluator counts accepted
+branch (docs/model.md section 5). Branches are told apart by step time: the evaluator counts accepted
 gaits whose step time differs from the previous one's by more than a set fraction (``jumps``, a
 suspected branch jump), and every result reports that count; compare ``result.gait.step_time``
 with the starting gait's to see where a search ended.
@@ -56,7 +56,7 @@ def heading_eigenvalue(gait: Gait) -> tuple[complex, float]:
     """The step-map eigenvalue of the heading mode and the share of phi in its eigenvector.
 
     On level ground heading is an exact symmetry of the 3D walker; the step map mirrors phi
-    (model.md section 4), so a heading change shows as a step-map eigenvalue of exactly -1 (stride
+    (docs/model.md section 4), so a heading change shows as a step-map eigenvalue of exactly -1 (stride
     map +1). On a slope gravity breaks the symmetry and the eigenvalue moves off -1. This returns
     the eigenvalue with the largest phi share in its eigenvector (angles and rates scaled as in
     :meth:`Gait.dominant_components`).

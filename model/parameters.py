@@ -1,9 +1,10 @@
 """The walker's physical parameters: a typed, immutable set with SI units, read from and written to TOML.
 
-Names, meanings and units follow ``shared/design/model.md`` section 2 and the parameter file shape of
-``shared/design/pipeline.md``. Every quantity is a plain float (or a fixed-length tuple of floats), so
-that a parameter set flattens to one vector (:meth:`Params.vector`) that the compiled equations of
-motion take as a symbolic input: one compiled function serves every parameter set and foot shape.
+Names, meanings and units follow ``docs/model.md`` section 2, and the file's shape is the one of
+``docs/formats.md``, "Parameters". Every quantity is a plain float (or a fixed-length tuple of
+floats), so that a parameter set flattens to one vector (:meth:`Params.vector`) that the compiled
+equations of motion take as a symbolic input: one compiled function serves every parameter set and
+foot shape.
 """
 
 from __future__ import annotations
@@ -125,7 +126,7 @@ _INERTIA_RTOL = 1e-12
 
 @dataclasses.dataclass(frozen=True)
 class Params:
-    """One walker: geometry, masses and ramp (SI units, model.md section 2).
+    """One walker: geometry, masses and ramp (SI units, docs/model.md section 2).
 
     Parameters
     ----------
@@ -153,9 +154,9 @@ class Params:
     gravity : float
         g (m/s^2).
     effects : mapping of str to float
-        Strengths of the model's physical effects (model.md section 6); empty is the seed's model.
+        Strengths of the model's physical effects (docs/model.md section 6); empty is the seed's model.
     gait_start : tuple of 8 floats, optional
-        A state near the walker's gait just after a left heel strike (model.md section 1), where
+        A state near the walker's gait just after a left heel strike (docs/model.md section 1), where
         :func:`~toywalk.model.gait.find_gait` starts before searching. The file's optional
         ``[gait]`` table, ``start = [...]``: a designed walker whose gait the search does not reach
         from the planar reduction carries it. Not a parameter: it is kept by :meth:`replace`, left
@@ -458,7 +459,8 @@ def _set_flat(data: dict[str, Any], name: str, value: Any) -> None:
 
 
 def load_params(path: str | Path) -> Params:
-    """Read a parameter TOML file (pipeline.md shape). Raises :class:`ParameterError` naming the field."""
+    """Read a parameter TOML file (docs/formats.md, "Parameters"). Raises :class:`ParameterError`
+    naming the field."""
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")  # TOML files are UTF-8 (toml.io)

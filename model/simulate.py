@@ -1,7 +1,7 @@
 """Forward simulation of many steps, in the physical (unmirrored) frame.
 
 The step map works in a mirrored description in which the stance leg is always the left leg
-(model.md section 4). :func:`simulate` undoes the mirror: on steps where the right leg is in stance,
+(docs/model.md section 4). :func:`simulate` undoes the mirror: on steps where the right leg is in stance,
 steer, lean and the lateral contact position change sign, and the pitches are assigned to the
 physical legs. Samples are taken on a uniform time grid by cubic Hermite interpolation of the
 integration grid (states and their exact derivatives at the nodes; the interpolation error is

@@ -1,6 +1,6 @@
 """Can the walker stand still? Static equilibria of every contact configuration and their stability.
 
-The toy's defining property (Coleman & Ruina, Phys. Rev. Lett. 80, 3658, 1998; model.md section 2)
+The toy's defining property (Coleman & Ruina, Phys. Rev. Lett. 80, 3658, 1998; docs/model.md section 2)
 is that it cannot stand: its centre of mass is above the feet's centre of curvature, so no standing
 configuration, with parallel or with splayed legs, is stable. :func:`can_stand` checks a parameter
 set for this and says how it stands or falls; :func:`static_margin` is the one-number rule of thumb.
@@ -16,7 +16,7 @@ A standing walker touches the ramp with
 - **two feet, splayed legs**: both feet down, one ahead of the other.
 
 All are described by the model's own coordinates ``q = (phi, psi, theta_st, theta_sw)``
-(model.md section 1, :mod:`toywalk.model.equations`): the left foot is the reference contact C that
+(docs/model.md section 1, :mod:`toywalk.model.equations`): the left foot is the reference contact C that
 rolls without slipping, exactly as in the equations of motion. The right foot, when down, is held by
 a contact force ``lambda`` (slope frame, N) at its lowest point c2. Standing on the right foot alone
 is the mirror image of standing on the left one (the walker and the ramp are symmetric under
@@ -96,7 +96,7 @@ Standing requires strictly positive normal forces on every foot down: a two-foot
 second foot is unloaded is decided by the one-foot analysis at the same place. Only upright
 configurations count: lean |psi| < 80 degrees, both legs within 90 degrees of the ramp normal, hips
 and centre of mass above the ramp. The verdict is linear (spectral) stability; the model's effects
-(model.md section 6, e.g. hip friction that could hold a splay) are not part of it.
+(docs/model.md section 6, e.g. hip friction that could hold a splay) are not part of it.
 
 Limits: the search is a grid, so an equilibrium far from every start (a splay beyond about 1.3 rad,
 a heading on a ramp between the four tried) can be missed; a touching free foot that blocks an
@@ -275,7 +275,7 @@ def static_margin(params: Params) -> float:
     The whole walker's centre of mass height over level ground with both legs upright and parallel
     and no lean, ``l + 2 m d_z / (2 m + M_h)``, minus the foot's lateral radius rho. Positive means
     the centre of mass is above the feet's lateral centre of curvature: with w = 0 such a walker
-    cannot stand (it falls sideways; model.md section 2). Cheap: no equilibrium is solved; see
+    cannot stand (it falls sideways; docs/model.md section 2). Cheap: no equilibrium is solved; see
     :func:`can_stand` for the full check (which also covers hip width, tilted equilibria and
     splayed legs).
 

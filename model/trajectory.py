@@ -1,4 +1,5 @@
-"""The trajectory files every stage shares (pipeline.md, "Files"): NAME.csv, NAME.events.csv, NAME.json.
+"""The trajectory files every stage shares (docs/formats.md, "Trajectory"): NAME.csv, NAME.events.csv,
+NAME.json.
 
 ``NAME.csv`` has one row per sample with the columns ``time, lean, steer, pitch_left, pitch_right,
 stance`` (s, rad, 'L'/'R'), optional ``*_sd`` standard deviations and optional ``contact_x,

@@ -1,11 +1,11 @@
 """The walker: right-hand side, energy, one step (flow to the guard, collision, mirror) and its Jacobian.
 
 :class:`Walker` joins a parameter set to the compiled kernels of :mod:`toywalk.model.engine`.
-Public states use the seed's order (model.md section 1)::
+Public states use the seed's order (docs/model.md section 1)::
 
     z = (phi, phi_dot, psi, psi_dot, theta_st, theta_st_dot, theta_sw, theta_sw_dot)   shape (8,)
 
-The step map P = mirror o collision o flow-to-guard (model.md section 4) is evaluated by integrating
+The step map P = mirror o collision o flow-to-guard (docs/model.md section 4) is evaluated by integrating
 with a fixed step dt until the guard is crossed (the swing foot's lowest point reaches the ramp,
 moving down, after it has passed in front of the stance foot), then solving for the length of the
 last step by Newton's method. Its Jacobian is exact for the numerical flow: AD through the steps,
@@ -26,7 +26,7 @@ from .parameters import N_PARAMS, Params
 __all__ = ["CLEARANCE_RESOLUTION", "STATE_NAMES", "Cycle", "Step", "StepFailure", "SwingClearance",
            "Walker", "describe_scuffs"]
 
-#: Public state order (model.md section 1).
+#: Public state order (docs/model.md section 1).
 STATE_NAMES = (
     "phi", "phi_dot", "psi", "psi_dot", "theta_st", "theta_st_dot", "theta_sw", "theta_sw_dot",
 )
@@ -71,7 +71,7 @@ class SwingClearance:
     negative interior minimum. It extends :attr:`Step.clearance` (the same, after the legs pass
     only) to the whole swing.
 
-    Why this is meaningful for feet offset sideways by the hip width w (model.md section 2): the
+    Why this is meaningful for feet offset sideways by the hip width w (docs/model.md section 2): the
     swing foot passes beside the stance foot, not through it, and the ramp is the only thing it can
     hit (torus feet of lateral radius rho never meet while w > 2 rho). With equal pitches its height
     as the legs pass is ``-w sin(psi)``: lean towards the stance foot (psi < 0) lifts it, as the
@@ -272,7 +272,7 @@ class Walker:
     params : Params
         The walker.
     planar : bool
-        Use the planar reduction (phi = psi = 0 held; model.md section 7). Only valid when the
+        Use the planar reduction (phi = psi = 0 held; docs/model.md section 7). Only valid when the
         walker is planar-symmetric (d_y = 0, I_xy = I_yz = 0, w = 0); required for point-mass
         limits whose 3D mass matrix is singular in the lateral directions.
     steps_per_time_unit : int
@@ -719,7 +719,7 @@ def _admissible(d_kinetic: float, impulses: np.ndarray, kinetic: float) -> None:
 
 
 def is_planar_symmetric(params: Params) -> bool:
-    """True when motion with phi = psi = 0 is invariant (model.md section 7)."""
+    """True when motion with phi = psi = 0 is invariant (docs/model.md section 7)."""
     i = params.inertia
     return (params.com_offset[1] == 0.0 and i[3] == 0.0 and i[5] == 0.0 and params.hip_width == 0.0
             and params.effects.get("cross_slope", 0.0) == 0.0)

@@ -108,7 +108,7 @@ ANOTHER_MINIMUM = 2.0
 
 @dataclasses.dataclass
 class Diagnosis(Verdict):
-    """The analysis (:func:`diagnose`); :meth:`to_json` is ``report.json`` (pipeline.md).
+    """The analysis (:func:`diagnose`); :meth:`to_json` is ``report.json`` (docs/formats.md, "Reports").
 
     Attributes
     ----------

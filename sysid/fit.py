@@ -275,7 +275,7 @@ class FitResult:
     periodicity: PeriodicityTest | None = dataclasses.field(repr=False, default=None)
 
     def to_json(self) -> dict:
-        """JSON-ready dictionary (pipeline.md's fit file: estimates, std, covariance, ...; the
+        """JSON-ready dictionary (the fit file of docs/formats.md, "Fit": estimates, std, covariance, ...; the
         ``periodicity`` test where one chose the model)."""
         out = {
             "status": self.status, "success": self.success, "iterations": self.iterations,
@@ -370,7 +370,7 @@ def with_values(params: Params, free, values: dict) -> Params:
 def fit_bounds(params: Params, free, name: str) -> tuple[float, float]:
     """The fit's bounds on a free parameter: its physical bounds (:func:`parameter_bounds`), and
     a foot radius bounded by the other when only one of the two is free and the foot is not a
-    sphere (model.md section 2: the sideways radius never exceeds the fore-aft one; when both are
+    sphere (docs/model.md section 2: the sideways radius never exceeds the fore-aft one; when both are
     free a constraint keeps them in order; a sphere's radii move together, :func:`tied`)."""
     low, high = parameter_bounds(params, name)
     if name == "foot_radius" and "foot_lateral_radius" not in free and not tied(params, free):
@@ -469,7 +469,7 @@ def fit(table: TrajectoryTable, params: Params, free, *, model: str = "periodic"
     ----------
     table : TrajectoryTable
         The measured walk (``toywalk track`` or ``toywalk simulate`` output, or any file in the
-        pipeline.md format); a simulation's ``source`` metadata is never read.
+        trajectory format of docs/formats.md); a simulation's ``source`` metadata is never read.
     params : Params
         The walker: the starting point, and the values of everything not free.
     free : sequence of str
@@ -781,7 +781,7 @@ class _Problem:
                                (1 - stage) * r_dur_aligned, stage * r_dur, r_prior, r_contact)
         f = 0.5 * ca.sumsqr(residuals)
         g = prob.constraints(w, p)
-        # A foot's sideways radius never exceeds its fore-aft one (model.md section 2): a bound
+        # A foot's sideways radius never exceeds its fore-aft one (docs/model.md section 2): a bound
         # when one of them is free, a constraint when both are.
         self.lbg, self.ubg = prob.lbg, prob.ubg
         if {"foot_radius", "foot_lateral_radius"} <= set(free):

@@ -1,12 +1,12 @@
 """The measurement model: what a model gait or walk predicts for each measured sample.
 
-A measured walk (a trajectory file, pipeline.md) is cut into steps at its heel strikes. Within a
+A measured walk (a trajectory file, docs/formats.md) is cut into steps at its heel strikes. Within a
 step, a sample's measured **phase** is ``(t - t_strike) / (t_next_strike - t_strike)`` in [0, 1).
 The step's stance leg is the foot that landed at its first strike. :func:`operator` reads the
 model at the measured phases (each step aligned on its measured strikes, taken as exact);
 :class:`Timing` reads it between the model's own strikes (below), which is what the fit does.
 
-The model describes a step in the mirrored description of model.md section 4 (the stance leg as
+The model describes a step in the mirrored description of docs/model.md section 4 (the stance leg as
 the left one). A step with the physical right leg in stance is mirrored back: lean and steer
 change sign. The stance leg's pitch is ``theta_st`` and the swing leg's ``theta_sw``. A
 step-periodic gait (one model step) serves every measured step; a stride-periodic one (effects that

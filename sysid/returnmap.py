@@ -6,7 +6,7 @@ Once per step, at a chosen **phase** of the step (default mid-step, 0.5), the wa
 estimated from the samples around it: a local quartic least-squares fit of each angle in time over
 a window of the step, weighted by a tricube kernel (Savitzky & Golay, Anal. Chem. 36:1627, 1964;
 Cleveland, J. Am. Stat. Assoc. 74:829, 1979), gives the angle and its rate, and the fit's
-covariance gives their measurement error. The section state is model.md's public state in the
+covariance gives their measurement error. The section state is docs/model.md's public state in the
 step's own description, shape (8,)::
 
     x = (phi, phi_dot, psi, psi_dot, theta_st, theta_st_dot, theta_sw, theta_sw_dot)
@@ -70,7 +70,7 @@ stable walker of ``data/params/stable-toy.toml`` (two noise-free walks of 5000 s
 and 0.75, the model's 0.935; lean and steer alone give 0.919 to 0.931 at 0.25 and 0.5, and 0.977
 to 0.979 at 0.75. The 8 x 8 map's 72 unknowns are too many for the 20 to 40 strides of a video, and the
 full section state lies on a 7-dimensional surface (the state after a heel strike is on the guard
-surface, model.md section 4). So the fit keeps only the directions the data determine: those
+surface, docs/model.md section 4). So the fit keeps only the directions the data determine: those
 above the noise, at most 7 of the full state's 8, and at most ``n_pairs // 5 - 1`` of them (5 pairs
 per unknown of each row of J), largest signal-to-noise ratio first, and it says so. (Without the
 guard's cap, the eighth direction of a noise-free walk sometimes reaches a signal-to-noise ratio
@@ -106,7 +106,7 @@ from .measurement import MeasurementError, observations
 __all__ = ["ALL_COORDINATES", "ESTIMATORS", "LATERAL_COORDINATES", "MapEstimate", "ReturnMap",
            "ReturnMapError", "Sections", "return_map", "return_maps", "section_states"]
 
-#: Every section coordinate, in model.md's public state order.
+#: Every section coordinate, in docs/model.md's public state order.
 ALL_COORDINATES = STATE_NAMES
 #: Steer and lean with their rates (a partial observation: see the module docstring).
 LATERAL_COORDINATES = ("phi", "phi_dot", "psi", "psi_dot")
@@ -117,7 +117,7 @@ ESTIMATORS = ("naive", "corrected", "instrumental")
 _SIGNAL_OF = {"phi": "steer", "psi": "lean", "theta_st": "pitch", "theta_sw": "pitch"}
 # Public indices of the angles whose rate follows them (phi, psi, theta_st, theta_sw).
 _ANGLE_INDEX = {"phi": 0, "psi": 2, "theta_st": 4, "theta_sw": 6}
-# Indices that change sign in the mirror y -> -y (model.md section 4): phi, phi_dot, psi, psi_dot.
+# Indices that change sign in the mirror y -> -y (docs/model.md section 4): phi, phi_dot, psi, psi_dot.
 _MIRRORED = np.array([0, 1, 2, 3])
 # Pairs per unknown of each row of J (the kept directions and the intercept): fewer directions
 # are fitted when the walk is short (a rule of thumb for regressions: below 5 observations per
@@ -241,7 +241,7 @@ def section_states(table: TrajectoryTable, phase: float = 0.5, width: float = 0.
     Parameters
     ----------
     table : TrajectoryTable
-        A measured walk (pipeline.md's trajectory format) with its heel strikes.
+        A measured walk (the trajectory format of docs/formats.md) with its heel strikes.
     phase : float
         Section phase within the step, in [0, 1] (0 = heel strike).
     width : float
@@ -486,7 +486,7 @@ class ReturnMap:
     stance : str or None
         The stance leg of the stride map's sections ('L' or 'R'); None for the step map.
     coordinates : tuple of str
-        Section coordinates (names of model.md's public state).
+        Section coordinates (names of docs/model.md's public state).
     n_sections : int
         Section states (strides for the stride map, steps for the step map) in the pairs.
     n_pairs, n_triplets : int
@@ -658,7 +658,7 @@ def return_map(table: TrajectoryTable, phase: float = 0.5, *, kind: str = "strid
     Parameters
     ----------
     table : TrajectoryTable
-        A measured walk with its heel strikes (pipeline.md's trajectory format).
+        A measured walk with its heel strikes (the trajectory format of docs/formats.md).
     phase : float
         Section phase within the step, in [0, 1] (default mid-step).
     kind : {'stride', 'step'}
@@ -667,7 +667,7 @@ def return_map(table: TrajectoryTable, phase: float = 0.5, *, kind: str = "strid
     stance : {'L', 'R'}
         The stride map's stance leg at the section (ignored for the step map).
     coordinates : sequence of str
-        Section coordinates, names of model.md's public state (default :data:`ALL_COORDINATES`,
+        Section coordinates, names of docs/model.md's public state (default :data:`ALL_COORDINATES`,
         the full state; :data:`LATERAL_COORDINATES` for lean and steer with their rates).
     width, degree : float, int
         The local fits' window (fraction of the step) and degree (:func:`section_states`).

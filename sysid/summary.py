@@ -375,7 +375,8 @@ def fit_summary(gait: Gait, data: SummaryData, free: Sequence[str], bounds: dict
 
 @dataclasses.dataclass
 class SummaryDiagnosis(Verdict):
-    """The analysis (:func:`diagnose_summary`); :meth:`to_json` is ``report.json`` (pipeline.md).
+    """The analysis (:func:`diagnose_summary`); :meth:`to_json` is ``report.json``
+    (docs/formats.md, "Reports").
 
     Attributes
     ----------

@@ -343,7 +343,7 @@ class WalksDiagnosis(Verdict):
     next_walk: dict | None = None
 
     def to_json(self) -> dict:
-        """``report.json`` (pipeline.md's fields, and each walk's base fit)."""
+        """``report.json`` (the fields of docs/formats.md, "Reports", and each walk's base fit)."""
         def walk_json(w: FitResult) -> dict:
             return {"estimates": w.estimates, "chi2": w.chi2, "n_residuals": w.n_residuals,
                     "noise_sd": w.noise_sd, "noise_source": w.noise_source, "status": w.status,

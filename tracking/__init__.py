@@ -1,5 +1,5 @@
 """Camera model and calibration, marker detection, pose estimation, angles, heel strikes, and the
-synthetic video renderer (pipeline.md, "Repository layout").
+synthetic video renderer (README.md, "Where things are").
 
 FFmpeg (OpenCV's video back end) prints its own messages ("moov atom not found") on stderr, which
 would add lines to the commands' one-line errors. OpenCV reads ``OPENCV_FFMPEG_LOGLEVEL`` once, when

@@ -1,4 +1,4 @@
-"""The walker's angles and their standard deviations from the joint leg fits (model.md section 1).
+"""The walker's angles and their standard deviations from the joint leg fits (docs/model.md section 1).
 
 A joint fit (:class:`toywalk.tracking.joint.WalkerPose`) gives the axle frame and each seen leg's
 pitch about it, in the camera frame; turned into the ramp frame, the legs' rotations give
@@ -39,7 +39,7 @@ ANGLE_NAMES = ("lean", "steer", "pitch_left", "pitch_right")
 def walker_angles(r_ramp: np.ndarray, pose: WalkerPose) -> np.ndarray:
     """The angles of a joint leg pose; NaN for an unseen leg's pitch.
 
-    The hip axis b2 gives steer and lean (``b2 = Rz(steer) Rx(lean) e_y``, model.md section 1,
+    The hip axis b2 gives steer and lean (``b2 = Rz(steer) Rx(lean) e_y``, docs/model.md section 1,
     :func:`toywalk.model.kinematics.hip_axis_angles`), each leg its pitch about it
     (:func:`toywalk.model.kinematics.pitch_angle`): the axle frame relative to
     ``Rz(steer) Rx(lean)`` times the leg's ``Ry(pitch)`` about the axle.
@@ -500,7 +500,7 @@ def motion_smoothed(time, values, sds, strikes=(), *, density: float | None = No
     The angle, its rate and its acceleration follow a white-jerk model (the jerk's spectral
     density ``density``; Bar-Shalom et al. 2001, section 6.2.3) whose rate and acceleration are
     free to jump at each heel strike (an impact: the angle is continuous, its rates are not,
-    model.md section 3). The samples are the per-frame estimates with their stated SDs; the
+    docs/model.md section 4). The samples are the per-frame estimates with their stated SDs; the
     posterior is the Rauch-Tung-Striebel smoother's. Unless given, ``density`` is the one of
     largest likelihood of the samples (a grid of powers of ten, then quarter decades), so the
     model is as loose as the signal needs: the posterior SD then covers the model's misfit too.

@@ -1,4 +1,4 @@
-"""Camera calibration from images of a ChArUco board (pipeline.md, ``toywalk calibrate``).
+"""Camera calibration from images of a ChArUco board (docs/cli.md, ``toywalk calibrate``).
 
 ChArUco corners (chessboard corners located with the help of the ArUco markers between them) are
 found in each view with ``cv2.aruco.CharucoDetector``, matched to the board's 3D points with

@@ -6,7 +6,7 @@ Conventions (written once, used everywhere in ``tracking``):
   pixel at (0, 0). Images themselves are NumPy arrays indexed ``[row, col]``.
 - The camera frame is OpenCV's: x right, y down, z forward (optical axis).
 - A pose ``(rvec, tvec)`` maps points of a body frame into the camera frame,
-  ``X_cam = R(rvec) X_body + tvec`` (Rodrigues vector, metres). The ramp frame is model.md's
+  ``X_cam = R(rvec) X_body + tvec`` (Rodrigues vector, metres). The ramp frame is docs/model.md's
   slope frame S (x downhill, y left, z along the ramp normal).
 - Distortion coefficients are in OpenCV's order ``(k1, k2, p1, p2[, k3[, k4, k5, k6]])``.
 

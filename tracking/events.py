@@ -1,6 +1,6 @@
 """Heel strikes from measured leg pitches, to sub-frame precision, and the stance foot per sample.
 
-A heel strike is a collision: the angles are continuous through it but their rates jump (model.md
+A heel strike is a collision: the angles are continuous through it but their rates jump (docs/model.md
 section 4). It is found where the leg pitches have a kink, without the walker's geometry (which
 ``track`` does not know):
 

@@ -1,4 +1,4 @@
-"""Both legs' poses fitted jointly, sharing one hip axis (model.md section 1).
+"""Both legs' poses fitted jointly, sharing one hip axis (docs/model.md section 1).
 
 The legs are two rigid bodies hinged on one axle: they share its direction ``b2`` (so steer and
 lean) and their hip points lie ``hip_width`` apart along it; only the pitches differ. Fitting the

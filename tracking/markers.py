@@ -1,4 +1,4 @@
-"""The marker layout: which ArUco markers are stuck where on the walker and the ramp (pipeline.md).
+"""The marker layout: which ArUco markers are stuck where on the walker and the ramp (docs/formats.md).
 
 A layout file is JSON::
 
@@ -12,7 +12,7 @@ A layout file is JSON::
       ]
     }
 
-``body`` is ``left_leg`` or ``right_leg`` (the leg body frame of model.md section 1: origin at the
+``body`` is ``left_leg`` or ``right_leg`` (the leg body frame of docs/model.md section 1: origin at the
 hip point, ``b1`` forward, ``b2`` along the hip axis to the left for both legs, ``b3`` along the leg
 from foot to hip) or ``ramp`` (the ramp frame S: x downhill, y left, z along the ramp normal).
 ``side`` is the side of the black square (m), ArUco's marker length; ``margin`` (m, optional,
@@ -49,7 +49,7 @@ __all__ = [
 
 #: Bodies a marker can be stuck to.
 BODIES = ("left_leg", "right_leg", "ramp")
-#: The leg bodies by their foot's letter ('L', 'R': model.md's legs, the trajectory's stance).
+#: The leg bodies by their foot's letter ('L', 'R': docs/model.md's legs, the trajectory's stance).
 LEGS = {"left_leg": "L", "right_leg": "R"}
 
 

@@ -1,7 +1,7 @@
 """The ramp frame in the camera frame, measured from the ramp markers, and a fixed pose checked
 against it.
 
-Every walker angle is measured in the ramp frame (model.md section 1), so the rotation of the
+Every walker angle is measured in the ramp frame (docs/model.md section 1), so the rotation of the
 ramp into the camera is part of every measurement: an error ``delta`` in it (a small rotation of
 the ramp's axes, ``R = R_true exp([delta]x)``, in ramp coordinates: x downhill, y left, z along the
 normal) shifts every lean by ``-delta_x``, every pitch by ``-delta_y`` and every steer by

@@ -263,7 +263,7 @@ class Motion:
     Uses the samples whose four angles are present and whose stance is 'L' or 'R'. Where the
     trajectory has ``contact_x, contact_y`` the hips are placed from them (model.kinematics); where
     it has not, the stance foot's rolling is integrated from the angles (``v_O = omega x (O - C)``,
-    model.md section 3, trapezoidal), starting with the contact at the ramp origin, and at each
+    docs/model.md section 3, trapezoidal), starting with the contact at the ramp origin, and at each
     stance change the new contact is the landing foot's lowest point.
 
     Between samples the angles and hips are interpolated step by step (:class:`StepwiseSpline`):

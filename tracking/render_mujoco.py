@@ -7,7 +7,7 @@ MuJoCo's OpenGL renderer (Todorov, Erez & Tassa, IROS 2012, doi:10.1109/IROS.201
 headless (EGL, or OSMesa), with its own lighting (a directional light that casts shadows, a
 headlight, specular highlights), texture filtering (mipmaps) and multisample anti-aliasing.
 
-The scene (an MJCF model, world frame = the ramp frame S of model.md section 1):
+The scene (an MJCF model, world frame = the ramp frame S of docs/model.md section 1):
 
 - each leg is a mocap body whose frame is the leg's body frame (origin at its hip point, b1
   forward, b2 along the axle, b3 up the leg), placed at each instant from

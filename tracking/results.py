@@ -82,7 +82,7 @@ class TrackResult:
     timestamps: dict = dataclasses.field(default_factory=dict)
 
     def table(self, *, smoothed: bool = False, metadata=None) -> TrajectoryTable:
-        """The trajectory-file table (pipeline.md) of the raw (default) or smoothed signals.
+        """The trajectory-file table (docs/formats.md, "Trajectory") of the raw (default) or smoothed signals.
 
         Parameters
         ----------

@@ -1,7 +1,7 @@
 """The synthetic scene the renderer draws: the walker's meshes, the textured ramp, the default camera.
 
 Everything is scaled from the walker's parameters (leg length l), so a 15 cm toy and a 50 cm
-compass walker both fill the frame. Geometry follows model.md sections 1-2: each leg's body frame
+compass walker both fill the frame. Geometry follows docs/model.md sections 1-2: each leg's body frame
 has its origin at the hip point, ``b1`` forward, ``b2`` along the hip axis (left), ``b3`` along the
 leg from foot to hip; the foot is a torus (tube radius rho, major radius r - rho about ``b2``) whose
 centre lies on the leg axis at l - r below the hip.

@@ -1,4 +1,4 @@
-"""Video to trajectory: markers, leg poses, walker angles, heel strikes (pipeline.md, ``track``).
+"""Video to trajectory: markers, leg poses, walker angles, heel strikes (docs/cli.md, ``toywalk track``).
 
 The stages, one module each: the video's frames and their times (:mod:`toywalk.tracking.video`),
 per-frame tracking (this module's :class:`Tracker`), the angles and their SDs

@@ -1,4 +1,4 @@
-"""The library of physical effects that extend the seed's model (model.md section 6).
+"""The library of physical effects that extend the seed's model (docs/model.md section 6).
 
 Each effect is a small unit (:class:`Effect`, one module per family) with one strength parameter
 that reduces the model exactly to the seed's at its null value. :data:`EFFECTS` maps each

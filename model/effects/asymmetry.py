@@ -1,7 +1,7 @@
 """Effects that break the left-right mirror symmetry: unequal legs and a sideways-tilted ramp.
 
 With either, a step with the left leg in stance differs from one with the right: the step map in
-the mirrored description (model.md section 4) depends on the side in stance, the periodic gait
+the mirrored description (docs/model.md section 4) depends on the side in stance, the periodic gait
 repeats every stride (two steps), and the walker turns or drifts sideways ("slight directional
 drift", Coleman & Ruina 1998). The side enters the compiled functions as the input ``side``
 (+1: the physical left leg in stance, the description is the physical one; -1: the right leg in

@@ -1,6 +1,6 @@
 """The template every effect follows, and what the equations builder hands to it.
 
-An effect (model.md section 6) is one small unit, like one of emcee's moves: a name, one strength
+An effect (docs/model.md section 6) is one small unit, like one of emcee's moves: a name, one strength
 parameter with its SI unit, its null value (at which the model is exactly the seed's), a typical
 magnitude, physical bounds, where it enters the model and whether it breaks the walker's
 left-right mirror symmetry, and the terms it contributes. Each contribution is a hook with a
@@ -35,7 +35,7 @@ __all__ = ["Arrest", "Context", "Effect"]
 
 @dataclasses.dataclass
 class Context:
-    """Symbolic quantities of one system an effect may use (slope frame S, model.md section 1).
+    """Symbolic quantities of one system an effect may use (slope frame S, docs/model.md section 1).
 
     Attributes
     ----------

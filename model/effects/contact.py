@@ -4,7 +4,7 @@ contact port's further terms about its three axes.
 The seed's contact is a point that rolls without slip and transmits no couple. A real foot rolls
 on a small deformed patch (the brass shim on a wooden ramp), which resists rolling and spinning.
 Both couples act on the stance leg; the ramp, at rest, takes the reaction, so each dissipates
-``-M . omega_st`` (model.md section 6).
+``-M . omega_st`` (docs/model.md section 6).
 
 The contact port splits the couple along three orthonormal axes (:class:`Context`): the heading
 ``h = Rz(phi) e_x`` (roll: the lean psi), the pitch axis ``p = Rz(phi) e_y``, the hip axis in the

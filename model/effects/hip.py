@@ -3,7 +3,7 @@ the hinge port's further terms (``hinge_stiffness``, ``hinge_cubic_stiffness``, 
 
 The legs turn on a shared axle; a Tinkertoy rod in a spool's hole rubs. The hinge torque acts on
 the swing leg about the hip axis n and its reaction on the stance leg, so it does no work on the
-rigid motion of the pair and takes the power ``-tau * (theta_sw' - theta_st')`` (model.md
+rigid motion of the pair and takes the power ``-tau * (theta_sw' - theta_st')`` (docs/model.md
 section 6): dissipated by friction; for a spring, the rate of change of the energy it stores.
 
 The port terms are port-only (:attr:`Effect.port_only`): the dictionary of generalised forces at

@@ -14,7 +14,7 @@ Sign conventions (docs/formats.md, "Ports and forms"): ``tau_hinge`` acts on the
 the hip axis n (to the left of the described stance leg), ``-tau_hinge`` on the stance leg; ``M_st``
 is the couple on the stance leg from the ramp, along the heading ``h = Rz(phi) e_x``, the in-plane
 hip axis ``p = Rz(phi) e_y`` or the ramp normal ``e_z``; angles and rates are those of the state
-(model.md section 1), in the step's mirrored description, so that every term is the same physical
+(docs/model.md section 1), in the step's mirrored description, so that every term is the same physical
 term with either leg in stance.
 """
 

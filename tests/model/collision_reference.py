@@ -51,7 +51,7 @@ def free_system(params, q):
         wj = np.zeros((3, 7))
         wj[:, 3:] = w_rates[leg]
         m_free += wj.T @ i_world[leg] @ wj
-    # Both feet share the offset C - O (model.md section 2), and C is the origin: D = O2 - O1.
+    # Both feet share the offset C - O (docs/model.md section 2), and C is the origin: D = O2 - O1.
     c2 = poses.foot_centre["R"] - poses.foot_centre["L"]
     contact_jac = point_jac(c2, 1)  # velocity of leg 2's material point at D
     c1_jac = point_jac(np.zeros(3), 0)  # leg 1's material point at C (rolling before impact)

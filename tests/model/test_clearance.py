@@ -88,7 +88,7 @@ def test_swing_clearance_does_not_depend_on_the_grid(stable_gait):
 
 
 def test_feet_on_one_line_cannot_clear():
-    """model.md section 6: a walker with w = 0 runs both feet on one line. The seed's point feet
+    """docs/model.md section 6: a walker with w = 0 runs both feet on one line. The seed's point feet
     pass through each other as the legs pass (height 0 there, to the passing instant's tolerance
     1e-10 l), so the clearance over the whole swing is at most 0."""
     params = load_params(DATA / "params" / "seed-pointfoot.toml")
@@ -255,15 +255,16 @@ def test_the_clearing_gait_lies_near_a_fold(clearing_gait):
 
 def test_toywalk_gait_reports_it(capfd):
     """`toywalk gait` prints the clearance over the whole swing and where it occurs, and its JSON
-    carries it beside pipeline.md's keys. The simplest walker's point foot dips 0.064 mm into the
-    ramp 14 mm behind the stance foot (its feet pass through each other, w = 0)."""
+    carries it beside the keys other tools read (docs/cli.md). The simplest walker's point foot
+    dips 0.064 mm into the ramp 14 mm behind the stance foot (its feet pass through each other,
+    w = 0)."""
     from toywalk.sysid.cli import main
 
     params = DATA / "params" / "simplest-walker.toml"
     assert main(["gait", "--params", str(params), "--json"]) == 0
     report = json.loads(capfd.readouterr().out)
     for key in ("step_time", "stride_length", "fixed_point", "eigenvalues", "max_abs_eigenvalue",
-                "can_stand", "status"):  # pipeline.md
+                "can_stand", "status"):  # docs/cli.md, `toywalk gait`
         assert key in report
     swing = report["swing_clearance"]
     assert report["clearance"] == swing["minimum"] < 0 and swing["where"] == "dip"

@@ -1,4 +1,4 @@
-"""The effects library (model.md section 6): registry, exact null, independent references for every
+"""The effects library (docs/model.md section 6): registry, exact null, independent references for every
 new term, energy accounting, AD Jacobians, and the symmetry-breaking (stride-periodic) gaits."""
 
 import math
@@ -149,7 +149,7 @@ def _omega_partials(q):
 
 
 def _reference_couples(name, k, params, q, u):
-    """Couples (leg index, M) of model.md section 6, from their physical definitions."""
+    """Couples (leg index, M) of docs/model.md section 6, from their physical definitions."""
     w_st, w_sw = (w @ u for w in _omega_partials(q))
     n = rotation(q[0], q[1], 0.0)[:, 1]
     rel = u[3] - u[2]

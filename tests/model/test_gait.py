@@ -34,7 +34,7 @@ def simplest():
 
 def test_simplest_walker_gait(simplest):
     gait = find_gait(simplest)
-    assert gait.planar  # point masses: the 3D mass matrix has no yaw inertia (model.md section 5)
+    assert gait.planar  # point masses: the 3D mass matrix has no yaw inertia (docs/model.md section 5)
     z = gait.fixed_point
     # Tolerances: the differences from the reference barely move when our grid is refined 4x (16 ->
     # 64 steps per time unit: by 1e-15 in the states, 2e-14 in the step time, 7e-14 in the

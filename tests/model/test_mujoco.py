@@ -117,7 +117,7 @@ def test_the_build_follows_the_model_over_a_step(clearing_gait):
 
 
 def test_the_walk_records_the_models_angles(clearing_gait, clearing_walk):
-    """walk_in_mujoco's angle record, in the model's conventions (model.md section 1: lean psi,
+    """walk_in_mujoco's angle record, in the model's conventions (docs/model.md section 1: lean psi,
     steer phi, each leg's pitch, physical frame). At t = 0 the angles read back from MuJoCo's leg
     frames are z0's, exactly up to round-off (measured 2.8e-17 rad; tolerance 1e-9 rad), with the
     left foot in stance at the origin. Over the first step, until the earlier of the two heel
@@ -193,7 +193,7 @@ def test_the_clearing_walker_walks_30_steps_in_mujoco(clearing_gait, clearing_wa
 
 
 def test_the_walk_is_a_trajectory_the_fit_reads(tmp_path, clearing_gait, clearing_walk):
-    """mujoco_trajectory writes the walk as `toywalk simulate` writes one (pipeline.md, "Files"):
+    """mujoco_trajectory writes the walk as `toywalk simulate` writes one (docs/formats.md, "Trajectory"):
     the columns of the model's simulation, the heel strikes after the start as events with their
     contact positions, metadata naming MuJoCo and its settings. It survives write_trajectory and
     read_trajectory exactly (repr'd floats), and sysid.measurement.observations cuts it into the

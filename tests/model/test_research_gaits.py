@@ -73,7 +73,7 @@ def test_seed_pointfoot_case(seed_gait):
     shares = dict(gait.dominant_components(0, n=8))
     assert shares["psi"] + shares["psi_dot"] > 0.6  # lean dominates the unstable mode
     # Heading: on this shallow slope (0.002 rad) a pair of step-map eigenvalues sits within 1e-3 of
-    # -1 (stride map: within 2e-3 of +1), not exactly at it (model.md section 4).
+    # -1 (stride map: within 2e-3 of +1), not exactly at it (docs/model.md section 4).
     heading, phi_share = heading_eigenvalue(gait)
     assert phi_share > 0.9
     assert 1e-6 < abs(heading + 1) < 1e-3

@@ -67,7 +67,7 @@ def test_trajectory_files_round_trip(compass, tmp_path):
     assert [e["foot"] for e in back.events] == [e.foot for e in traj.events]
     header = (tmp_path / "walk.csv").read_text().splitlines()[0]
     assert header.startswith("time,lean,steer,pitch_left,pitch_right,stance")
-    # simulated strikes are exact: the events file keeps pipeline.md's four columns; measured
+    # simulated strikes are exact: the events file keeps its four columns (docs/formats.md); measured
     # ones (the tracker's) add their time_sd, read back too
     assert (tmp_path / "walk.events.csv").read_text().splitlines()[0] == "time,foot,x,y"
     assert all("time_sd" not in e for e in back.events)

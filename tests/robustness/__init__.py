@@ -1,6 +1,6 @@
 """Robustness: every command given bad input, and runs that fail for a physical or numerical reason.
 
-Each bad-input case holds the command line's promise (pipeline.md, "Command line"): exit status 2,
+Each bad-input case holds the command line's promise (docs/cli.md): exit status 2,
 one line on stderr (``toywalk CMD: error: ...``) naming the problem, no output written (no partial
 file, companion or temporary file), and a result already stored at the output path left as it was.
 The commands run in the test process through the console script's entry point, with stderr read at

@@ -67,8 +67,9 @@ def test_the_hidden_effect_is_named_with_an_interval_that_holds_it(hidden, tmp_p
 def test_a_walk_of_the_base_model_is_adequate(toy, tmp_path):
     """Null case: a walk of the base model itself (a seed not used elsewhere). The false-alarm
     rate over 20 seeds is measured in docs/diagnose_null.csv. Its report is written, every
-    ranking row with pipeline.md's keys (an adequate verdict's rows, no candidate fitted, had no
-    estimate: the report's table raised KeyError, `toywalk diagnose` a traceback)."""
+    ranking row with the keys docs/formats.md gives report.json (an adequate verdict's rows, no
+    candidate fitted, had no estimate: the report's table raised KeyError, `toywalk diagnose` a
+    traceback)."""
     table, _ = simulated_walk(toy, 12, 0.002, 11)
     d = diagnose(table, toy, free=FREE, model="periodic")
     assert d.verdict == "adequate" and d.cause is None, d.evidence

@@ -401,7 +401,7 @@ def test_unusable_input_is_one_clear_line(kicked):
 
 
 def test_result_to_json_from_a_trajectory_file(kicked, tmp_path):
-    """The walk through pipeline.md's trajectory files (repr round-trips every float), then the
+    """The walk through the trajectory files of docs/formats.md (repr round-trips every float), then the
     result as JSON without NaN."""
     table, _ = kicked
     write_trajectory(table, tmp_path / "walk.csv")

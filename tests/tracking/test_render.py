@@ -124,7 +124,7 @@ MIRROR = np.diag([1.0, -1.0, 1.0])
 def _model_points(walker, steer, lean, pitch_left, pitch_right, stance):
     """The walker's points relative to the stance contact from the symbolic model (Walker.points:
     rows C, O1, H1, axle, H2, O2, C2, ...), in the physical frame: the model describes a right-leg
-    stance mirrored (model.md section 4)."""
+    stance mirrored (docs/model.md section 4)."""
     if stance == "L":
         return walker.points(np.array([steer, lean, pitch_left, pitch_right, 0, 0, 0, 0, 0, 0]))
     return walker.points(np.array([-steer, -lean, pitch_right, pitch_left, 0, 0, 0, 0, 0, 0])) @ MIRROR

@@ -113,7 +113,7 @@ def _old_one_leg_angles(r_ramp, foot, r_camera):
 def _torus_lowest_point(params, rot, hip):
     """The lowest point of the foot's torus, found by search: the surface
     ``O + (a + rho cos v) (cos u b1 + sin u b3) + rho sin v b2`` (centre circle of radius
-    ``a = r - rho`` in the leg's (b1, b3) plane, tube radius rho; model.md section 2) sampled on a
+    ``a = r - rho`` in the leg's (b1, b3) plane, tube radius rho; docs/model.md section 2) sampled on a
     grid, its lowest sample refined by BFGS."""
     b1, b2, b3 = rot[:, 0], rot[:, 1], rot[:, 2]
     r, rho = params.foot_radius, params.foot_lateral_radius

@@ -104,7 +104,7 @@ def test_one_marker_leg_is_pinned_by_the_other(setup):
 
 
 def test_rot_y_is_a_pitch():
-    # model.md: Ry(theta) turns b3 (foot to hip) towards +x (forward) for theta > 0
+    # docs/model.md: Ry(theta) turns b3 (foot to hip) towards +x (forward) for theta > 0
     np.testing.assert_allclose(rot_y(0.3) @ [0, 0, 1], [np.sin(0.3), 0, np.cos(0.3)], atol=1e-15)
 
 
