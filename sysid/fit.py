@@ -292,7 +292,7 @@ class FitResult:
             "undetermined": self.undetermined, "priors": {n: list(v) for n, v in self.priors.items()},
             "options": self.options, "params": self.params.to_dict(),
             "units": {"angles": "rad", "durations": "s", "contact positions": "m",
-                      "parameters": "SI (pipeline.md)"},
+                      "parameters": "SI (docs/formats.md)"},
         }
         if self.periodicity is not None:
             out["periodicity"] = self.periodicity.to_json()
