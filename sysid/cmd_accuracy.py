@@ -41,6 +41,8 @@ def register(subparsers) -> None:
                    help="renders, each with its own noise seed (default 3; about a minute each)")
     p.add_argument("--steps", type=int, default=16, help="steps of each walk (default 16)")
     p.add_argument("--seed", type=int, default=0, help="first render's noise seed (default 0)")
+    p.add_argument("--engine", choices=("scene", "mujoco"), default="scene",
+                   help="renderer, as render --engine: the project's own (scene, default) or MuJoCo's")
     p.add_argument("--out", required=True, metavar="A.json", help="tracker-error file to write")
     p.set_defaults(func=cmd_accuracy)
 
@@ -114,7 +116,7 @@ def cmd_accuracy(args) -> int:
     try:
         errors = measure_by_rendering(params, folder, walks=args.walks, steps=args.steps, fps=fps,
                                       noise=noise, size=size, camera=camera, layout=layout, seed=args.seed,
-                                      hip_width=float(params.hip_width),
+                                      hip_width=float(params.hip_width), engine=args.engine,
                                       progress=lambda k, n: say(f"walk {k} of {n} tracked"))
     except AccuracyError as err:
         raise CommandError(str(err)) from err

@@ -291,15 +291,17 @@ def walk_variant(params, k: int):
 
 def measure_by_rendering(params, folder: str | Path, *, walks: int = 3, steps: int = 16, fps: float = 120.0,
                          noise: int = 1, size: tuple[int, int] = (1280, 720), camera=None, layout=None,
-                         seed: int = 0, hip_width: float | None = None, progress=None) -> PhaseErrors:
+                         seed: int = 0, hip_width: float | None = None, engine: str = "scene",
+                         progress=None) -> PhaseErrors:
     """Measure the tracker's errors on ``walks`` renders of the walker's gait (``steps`` steps from
     its fixed point, as ``toywalk simulate``; walk ``k`` on the ramp of :func:`walk_variant`)
     filmed as ``toywalk render`` films them (frame rate, ``noise`` level, image ``size``;
     ``camera`` with a ramp pose, else placed for each walk as render places it; ``layout``, else
     the walker's default), each with its own noise seed (``seed``, ``seed + 1``, ...), tracked
     back as ``toywalk track`` tracks them (the lens's intrinsics only, the ramp pose measured).
-    Videos go to ``folder`` (kept: they are the calibration's evidence). ``progress(k, walks)``
-    is called after each walk.
+    Videos go to ``folder`` (kept: they are the calibration's evidence). ``engine`` is the
+    renderer, the project's own (``scene``) or MuJoCo's (``mujoco``), as ``toywalk render
+    --engine``. ``progress(k, walks)`` is called after each walk.
 
     Raises AccuracyError where the walker has no gait or a walk cannot be rendered or tracked.
     """
@@ -312,6 +314,13 @@ def measure_by_rendering(params, folder: str | Path, *, walks: int = 3, steps: i
     if walks < 1 or steps < 3:
         raise AccuracyError(f"need at least one walk of three steps, got {walks} walk(s) of {steps}")
     given = camera is not None
+    draw, failures = render, (RenderError, TrackError)
+    if engine == "mujoco":
+        from .render_mujoco import MujocoUnavailable, render_mujoco
+
+        draw, failures = render_mujoco, (RenderError, TrackError, MujocoUnavailable)
+    elif engine != "scene":
+        raise AccuracyError(f"engine must be 'scene' or 'mujoco', got {engine!r}")
     try:
         options = RenderOptions.preset(noise, fps=float(fps))
     except RenderError as err:
@@ -336,11 +345,11 @@ def measure_by_rendering(params, folder: str | Path, *, walks: int = 3, steps: i
             shot, path, placed = ((camera, None, None) if given
                                   else default_filming(walk, walker, *size, options))
             shown = layout if layout is not None else (placed or default_layout(walker))
-            result = render(walk, walker, shot, shown, options, video, rng=seed + k, path=path,
-                            source="toywalk accuracy: the walker's gait")
+            result = draw(walk, walker, shot, shown, options, video, rng=seed + k, path=path,
+                          source="toywalk accuracy: the walker's gait")
             tracked, _ = track_video(video, dataclasses.replace(shot, ramp_pose=None), shown,
                                      hip_width=hip_width)
-        except (RenderError, TrackError) as err:
+        except failures as err:
             raise AccuracyError(f"calibration walk {k + 1}: {str(err).splitlines()[0]}") from err
         pairs.append((tracked.table(), read_trajectory(result.paths["truth"])))
         slopes.append(float(walker.slope))
@@ -349,7 +358,7 @@ def measure_by_rendering(params, folder: str | Path, *, walks: int = 3, steps: i
     source = {"walker": params_record(params), "effects": dict(params.effects), "steps": steps,
               "slopes": slopes, "slopes_without_gait": skipped, "seeds": [seed + k for k in range(walks)],
               "fps": float(fps),
-              "noise_level": noise, "size": list(shot.size),
+              "noise_level": noise, "size": list(shot.size), "engine": engine,
               "camera": "given" if given else "placed for each walk as render places it",
               "layout": shown.description, "folder": str(folder)}
     return measure(pairs, source=source)
