@@ -74,6 +74,34 @@ def test_a_shared_error_of_known_size_is_not_a_pattern():
     assert 0.01 < np.mean(np.array(aware) < 0.05) < 0.08
 
 
+def test_a_shared_error_of_known_size_widens_the_features_standard_errors():
+    """The same shared error (1 mrad by signal, foot and phase bin, under 2 mrad of noise, 16
+    steps) moves the features' means over the steps by more than the steps' scatter says: their z
+    RMS over 20 draws 1.95-2.73 by feature (2.4 over all); told its SD, 0.85-1.58 (1.4 over all;
+    with 16 steps the t's spread and the noisy model features keep it above 1). Bounds: above 2
+    and below 1.7."""
+    import dataclasses
+
+    from toywalk.sysid.residuals import FEATURES, feature_misfit
+
+    rng = np.random.default_rng(5)
+    obs = grid_observations(rng=rng)
+    told = dataclasses.replace(obs, phase_sd=np.full(obs.value.shape, 0.001))
+    cell = np.minimum((obs.phase * 20).astype(int), 19)
+    foot = (obs.stance[obs.step] == "R").astype(int)
+    plain, aware = [], []
+    for _ in range(20):
+        shared = rng.normal(0.0, 0.001, (4, 2, 20))[obs.signal, foot, cell]
+        measured = obs.value + shared + rng.normal(0.0, 0.002, obs.value.shape)
+        keys = [k for k in FEATURES if k != "duration"] + ["steer_mean_right_minus_left"]
+        for target, z in ((obs, plain), (told, aware)):
+            f = feature_misfit(target, measured, obs.value, sigma=np.full(obs.value.shape, 0.002),
+                               rng=1)
+            z += [f[k]["z"] for k in keys]
+    assert np.sqrt(np.mean(np.square(plain))) > 2
+    assert np.sqrt(np.mean(np.square(aware))) < 1.7
+
+
 def test_phase_bins_follow_the_samples_a_step():
     """A walk filmed with few samples a step (the stable toy at 60 frames/s: 6-7) still gets its
     repeated-pattern test: with 10 phase bins no step had a sample in every bin and the test
