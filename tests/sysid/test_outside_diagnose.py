@@ -20,7 +20,8 @@ def test_soft_contacts_are_an_effective_description_not_rolling_resistance():
     resistance (docs/outside_contact_before.csv) while its pitches' held-out RMS stayed at four
     times the noise; now it is an effective description that says what it leaves."""
     table = outside.walk("contact", 0)
-    d = diagnose(table, load_params(DATA / "params" / "clearing-toy.toml"), model="periodic", free=FREE)
+    d = diagnose(table, load_params(DATA / "params" / "clearing-toy.toml"), model="periodic", free=FREE,
+                 missing_force=False)  # the search: tests/sysid/test_missing_force.py
     assert d.causes == [] and d.cause == "unexplained", d.evidence
     assert d.verdict == "partly explained", d.evidence
     e = d.effective
@@ -37,7 +38,8 @@ def test_a_foot_profile_is_not_named_a_collision_law_and_a_mass_offset():
     named the spin arrest and the vertical mass offset together (docs/outside_foot_profile_before.csv);
     the pair leaves the pitches' held-out RMS near ten times the noise."""
     table = outside.walk("foot_profile", 3)
-    d = diagnose(table, load_params(DATA / "params" / "clearing-toy.toml"), model="periodic", free=FREE)
+    d = diagnose(table, load_params(DATA / "params" / "clearing-toy.toml"), model="periodic", free=FREE,
+                 missing_force=False)  # the search: tests/sysid/test_missing_force.py
     assert d.causes == [] and d.cause == "unexplained", d.evidence
     assert d.verdict == "partly explained" and not d.effective["explains"], d.evidence
     # measured 10.3 and 8.7 noise SDs: far beyond any limit of the rule (1.1 widened by the noise
