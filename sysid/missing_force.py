@@ -49,7 +49,7 @@ MAX_TERMS = 3
 RULE = (f"forward selection over the port dictionary: at each step the {FITTED} terms with the "
         "strongest score tests are fitted, each added to the current model; the best is kept when its "
         "likelihood ratio is significant at alpha over the terms tried, it beats the runner-up by "
-        f"{SEPARATION} in chi-square, and the model with it predicts held-out strides (two folds of "
+        f"{SEPARATION:.1f} in chi-square, and the model with it predicts held-out strides (two folds of "
         f"alternate strides) better than the model without; at most {MAX_TERMS} terms")
 
 
@@ -177,8 +177,8 @@ def discover(table, base: FitResult, free, *, alpha: float, pool: FitPool, noise
         best = fitted[0]
         if len(fitted) > 1 and fitted[1]["lr_p"] < level and best["lr"] - fitted[1]["lr"] < SEPARATION:
             stop = (f"{best['parameter']} and {fitted[1]['parameter']} fit the walk about equally well "
-                    f"({best['lr']:.1f} and {fitted[1]['lr']:.1f} in chi-square; {SEPARATION} would "
-                    "decide): this walk cannot tell them apart")
+                    f"({best['lr']:.1f} and {fitted[1]['lr']:.1f} in chi-square; {SEPARATION:.1f} "
+                    "would decide): this walk cannot tell them apart")
             record["outcome"] = stop
             break
         ext = best["fit"]
