@@ -17,6 +17,7 @@ from toywalk.model.walker import StepFailure, Walker, _admissible
 
 from ..conftest import DATA
 from .collision_reference import free_system, u_plus_old_labels
+from .effect_reference import omega_partials, random_states, typical
 from .walkers import FEET, GENERAL
 
 # The library's effects proper; the port-only terms of the registry have their own checks
@@ -32,8 +33,6 @@ def toy():
     return params, find_gait(params)
 
 
-def _typical(params, names):
-    return params.replace(**{f"effects.{n}": EFFECTS[n].typical for n in names})
 
 
 # ----------------------------------------------------------------------------------- registry
@@ -74,13 +73,6 @@ def test_parameter_files_name_effects_and_refuse_unknown_or_impossible(toy, tmp_
 
 
 # ----------------------------------------------------------------------- null: the seed's model
-def _random_states(rng, n, planar=False):
-    for _ in range(n):
-        x = np.zeros(10)
-        x[:4] = [0.05, 0.08, -0.2, 0.25] + rng.normal(0, 0.05, 4)
-        x[4:8] = rng.normal(0, 1.5, 4)
-        x[8:] = rng.normal(0, 0.1, 2)
-        yield x
 
 
 @pytest.mark.parametrize("feet", sorted(FEET))
@@ -90,7 +82,7 @@ def test_null_effects_equal_the_seed_model_pointwise(feet):
     params = Params(**GENERAL, **FEET[feet])
     ours, seed = Walker(params), Walker(params, effects=False, compiled=False)
     rng = np.random.default_rng(10)
-    for x in _random_states(rng, 10):
+    for x in random_states(rng, 10):
         for name in ("rhs", "collision", "energy", "guard", "impact"):
             a = np.concatenate([np.ravel(v) for v in ours.eng.k[name](x, ours.p)])
             b = np.concatenate([np.ravel(v) for v in seed.eng.k[name](x, seed.p)])
@@ -130,27 +122,11 @@ def test_null_effects_reproduce_gait_eigenvalues_and_a_30_step_walk(name):
 
 
 # ------------------------------------------------------ continuous effects: independent reference
-def _omega_partials(q):
-    """Partial angular velocities W_i (3, 4) of both legs from NumPy rotations (model.kinematics),
-    by central differences of R(q) R^T: omega = vee(R' R^T)."""
-    h = 1e-6
-    out = []
-    for leg in (2, 3):
-        cols = []
-        for j in range(4):
-            dq = np.zeros(4)
-            dq[j] = h
-            rp = rotation(*(q + dq)[[0, 1, leg]])
-            rm = rotation(*(q - dq)[[0, 1, leg]])
-            skew = (rp - rm) / (2 * h) @ rotation(*q[[0, 1, leg]]).T
-            cols.append([skew[2, 1], skew[0, 2], skew[1, 0]])
-        out.append(np.array(cols).T)
-    return out
 
 
 def _reference_couples(name, k, params, q, u):
     """Couples (leg index, M) of docs/model.md section 6, from their physical definitions."""
-    w_st, w_sw = (w @ u for w in _omega_partials(q))
+    w_st, w_sw = (w @ u for w in omega_partials(q))
     n = rotation(q[0], q[1], 0.0)[:, 1]
     rel = u[3] - u[2]
     if name == "hip_damping":
@@ -174,9 +150,9 @@ def test_continuous_effects_equal_virtual_work_reference(name):
     k = 10 * EFFECTS[name].typical
     walker, seed = Walker(base.replace(**{f"effects.{name}": k})), Walker(base)
     rng = np.random.default_rng(11)
-    for x in _random_states(rng, 6):
+    for x in random_states(rng, 6):
         q, u = x[:4], x[4:8]
-        partials = _omega_partials(q)
+        partials = omega_partials(q)
         couples = _reference_couples(name, k, base, q, u)
         q_ref = sum(partials[leg].T @ m for leg, m in couples)
         m_mat = walker.eng.k["mass_matrix"](x, walker.p)[0]
@@ -211,7 +187,7 @@ def test_energy_lost_equals_integrated_dissipation(toy):
     """All continuous effects on at once: between collisions E(t) - E(0) + W(t) stays below 1e-9
     of m g l (W from the same Runge-Kutta steps as the state); without W the balance fails."""
     params, gait = toy
-    walker = Walker(_typical(params, LIBRARY_CONTINUOUS))
+    walker = Walker(typical(params, LIBRARY_CONTINUOUS))
     step = walker.step(gait.fixed_point, record=True)
     energy = np.array([walker.energy(x) for x in step.states])
     lost = step.dissipated.sum(axis=1)
@@ -224,7 +200,7 @@ def test_energy_lost_equals_integrated_dissipation(toy):
 
 def test_simulation_reports_energy_budget(toy):
     params, gait = toy
-    traj = simulate(_typical(params, LIBRARY_CONTINUOUS), gait.fixed_point, 4)
+    traj = simulate(typical(params, LIBRARY_CONTINUOUS), gait.fixed_point, 4)
     assert len(traj.collision_losses) == 4 and np.all(traj.collision_losses > 0)
     assert set(traj.dissipated) == set(CONTINUOUS)
     assert all(traj.dissipated[name] > 0 for name in LIBRARY_CONTINUOUS)
@@ -301,7 +277,7 @@ def test_collision_effects_match_free_walker_impulses(feet):
     for share, arrest in ((0.2, 0.0), (0.0, 0.7), (0.25, 1.0)):
         walker = Walker(params.replace(**{"effects.impact_trailing_share": share,
                                           "effects.impact_spin_arrest": arrest}))
-        for x in _random_states(rng, 4):
+        for x in random_states(rng, 4):
             expected, d_k, impulses, before = _reference_collision(params, x, share, arrest)
             got = u_plus_old_labels(walker, walker.eng.k["collision"](x, walker.p)[0].ravel())
             rate = np.max(np.abs(x[4:8]))
@@ -381,7 +357,7 @@ def test_ad_jacobians_with_effects_match_finite_differences(toy):
     """Every symmetric effect on at once: the step map's state and parameter Jacobians (effect
     strengths included) against central differences."""
     params, gait = toy
-    on = _typical(params, SYMMETRIC)
+    on = typical(params, SYMMETRIC)
     walker = Walker(on)
     z = gait.fixed_point  # any state that completes a step (all effects together have no gait near)
     step = walker.step(z, params_jacobian=True)
@@ -531,7 +507,7 @@ def test_geometry_effects_match_numpy_kinematics():
     walker = Walker(params)
     d = np.array(params.com_offset)
     rng = np.random.default_rng(17)
-    for x in _random_states(rng, 4):
+    for x in random_states(rng, 4):
         x[4:8] = 0.0  # at rest: the energy is the potential alone
         for side in (1, -1):
             poses = leg_poses(params, *x[:4], "L", (0.0, 0.0))

@@ -17,6 +17,7 @@ from toywalk.model.walker import Walker
 
 from ..conftest import DATA
 from .collision_reference import free_system, u_plus_old_labels
+from .effect_reference import omega_partials, random_states, typical
 from .walkers import FEET, GENERAL
 
 #: The port-only terms, and those of them that act between collisions.
@@ -42,8 +43,6 @@ def toy():
     return params, find_gait(params)
 
 
-def _typical(params, names):
-    return params.replace(**{f"effects.{n}": EFFECTS[n].typical for n in names})
 
 
 # -------------------------------------------------------------------------------------- table
@@ -71,27 +70,12 @@ def test_the_table_maps_every_port_and_form_to_one_parameter():
 
 
 # ------------------------------------------------------------- continuous terms: the reference
-def _omega_partials(q):
-    """Partial angular velocities (3, 4) of both legs from NumPy rotations (model.kinematics), by
-    central differences of R(q) R^T: omega = vee(R' R^T)."""
-    h = 1e-6
-    out = []
-    for leg in (2, 3):
-        cols = []
-        for j in range(4):
-            dq = np.zeros(4)
-            dq[j] = h
-            skew = ((rotation(*(q + dq)[[0, 1, leg]]) - rotation(*(q - dq)[[0, 1, leg]])) / (2 * h)
-                    @ rotation(*q[[0, 1, leg]]).T)
-            cols.append([skew[2, 1], skew[0, 2], skew[1, 0]])
-        out.append(np.array(cols).T)
-    return out
 
 
 def _reference_couples(name, k, params, q, u):
     """Couples (leg index 0 = stance, 1 = swing, M) from the definitions of docs/formats.md,
     "Ports and forms", with the axes built here from phi (not from the model)."""
-    w_st = _omega_partials(q)[0] @ u
+    w_st = omega_partials(q)[0] @ u
     n = rotation(q[0], q[1], 0.0)[:, 1]
     heading = np.array([math.cos(q[0]), math.sin(q[0]), 0.0])
     pitch = np.cross(EZ, heading)
@@ -116,12 +100,6 @@ def _reference_couples(name, k, params, q, u):
     return [(0, torque * axis)]
 
 
-def _random_states(rng, n):
-    for _ in range(n):
-        x = np.zeros(10)
-        x[:4] = [0.05, 0.08, -0.2, 0.25] + rng.normal(0, 0.05, 4)
-        x[4:8] = rng.normal(0, 1.5, 4)
-        yield x
 
 
 @pytest.mark.parametrize("name", PORT_CONTINUOUS)
@@ -134,9 +112,9 @@ def test_port_terms_equal_their_virtual_work_definition(name):
     k = 10 * EFFECTS[name].typical
     walker, seed = Walker(base.replace(**{f"effects.{name}": k})), Walker(base)
     i = CONTINUOUS.index(name)
-    for x in _random_states(np.random.default_rng(31), 6):
+    for x in random_states(np.random.default_rng(31), 6, contact=False):
         q, u = x[:4], x[4:8]
-        partials = _omega_partials(q)
+        partials = omega_partials(q)
         couples = _reference_couples(name, k, base, q, u)
         q_ref = sum(partials[leg].T @ m for leg, m in couples)
         m_mat = walker.eng.k["mass_matrix"](x, walker.p)[0]
@@ -163,7 +141,7 @@ def test_the_stiffness_terms_are_forces_on_their_own_angle_alone():
     generalised = build_functions(False)["generalised"]
     for name, j in (("roll_stiffness", 1), ("pitch_stiffness", 2)):
         p = base.replace(**{f"effects.{name}": 1.0}).input_vector(1.0)
-        for x in _random_states(np.random.default_rng(32), 3):
+        for x in random_states(np.random.default_rng(32), 3, contact=False):
             expected = np.zeros(4)
             expected[j] = -x[j]
             assert_allclose(generalised(x, p).full().ravel(), expected, rtol=0, atol=1e-15)
@@ -257,7 +235,7 @@ def test_friction_terms_take_energy_over_a_step(toy):
     into the step) turns within 0.2 ms, a kink the default 16 steps integrate to 3e-8 of m g l
     (measured 2026-11-28; 3e-10 at 64)."""
     params, gait = toy
-    walker = Walker(_typical(params, DISSIPATIVE), steps_per_time_unit=64)
+    walker = Walker(typical(params, DISSIPATIVE), steps_per_time_unit=64)
     step = walker.step(gait.fixed_point, record=True)
     energy = np.array([walker.energy(x) for x in step.states])
     lost = step.dissipated.sum(axis=1)
@@ -315,7 +293,7 @@ def test_lean_arrest_and_both_arrests_match_free_walker_impulses(feet):
         walker = Walker(params.replace(**{"effects.impact_trailing_share": share,
                                           "effects.impact_spin_arrest": spin,
                                           "effects.impact_lean_arrest": lean}))
-        for x in _random_states(rng, 3):
+        for x in random_states(rng, 3, contact=False):
             expected, d_k, lead, before = _reference_collision(params, x, share, spin, lean)
             got = u_plus_old_labels(walker, walker.eng.k["collision"](x, walker.p)[0].ravel())
             rate = np.max(np.abs(x[4:8]))
@@ -375,7 +353,7 @@ def test_roll_and_pitch_damping_together_are_rolling_resistance(toy):
     split = params.replace(**{"effects.roll_damping": c, "effects.pitch_damping": c})
     whole = params.replace(**{"effects.rolling_resistance": c})
     a, b = Walker(split), Walker(whole)
-    for x in _random_states(np.random.default_rng(35), 5):
+    for x in random_states(np.random.default_rng(35), 5, contact=False):
         assert_allclose(a.rhs(x), b.rhs(x), rtol=1e-13, atol=1e-13 * np.abs(b.rhs(x)).max())
         assert_allclose(a.dissipation(x).sum(), b.dissipation(x).sum(), rtol=1e-13)
     gait_a, gait_b = solve_fixed_point(a, gait.fixed_point), solve_fixed_point(b, gait.fixed_point)
