@@ -4,8 +4,9 @@ each walker with a hidden effect and with nothing hidden (docs/diagnosis.md, "Th
 For a walker, its gait is walked 16 steps (``toywalk simulate``), once with a library effect at a
 strength that moves the gait by a few noise SDs and once with nothing hidden; each walk is rendered
 at the README's settings (``render --fps 120 --noise 1``) with seeds 0, 1, ... and tracked twice:
-as it comes (``track``) and with the tracker's errors carried (``track --accuracy``, from
-``toywalk accuracy --like`` on three renders of the walker's own gait with other seeds, made once).
+as it comes (``track``) and with the tracker's errors carried (what ``track --accuracy`` writes,
+from ``toywalk accuracy --like`` on three renders of the walker's own gait with other seeds, made
+once).
 Each track is analysed with ``diagnose``'s defaults. A row per walk and track: the verdict, the
 cause named, the hidden effect's estimate and interval (from the ranking) and whether it holds the
 truth, and the heel strikes' time errors over their ``time_sd`` (RMS, against the render's truth).
@@ -64,6 +65,16 @@ def timing_z(tracked: Path, truth: Path) -> tuple[float, int]:
     return (math.nan if z is None else z), found["true"] - found["missed"]
 
 
+def carry(raw: Path, accuracy: Path, out: Path) -> None:
+    """What ``track VIDEO --accuracy A.json`` writes, from the video's track as it came: the
+    tracker is deterministic (its angles and strikes are the same to the bit), so the errors are
+    carried into the track already made rather than tracking the video again."""
+    from toywalk.model.trajectory import read_trajectory, write_trajectory
+    from toywalk.tracking.accuracy_phase import load_phase_errors
+
+    write_trajectory(load_phase_errors(accuracy).apply(read_trajectory(raw), note=str(accuracy)), out)
+
+
 def diagnosed(tracked: Path, params: Path, out: Path, hidden: str, truth: float) -> dict:
     """diagnose's verdict, cause and the hidden effect's interval from report.json."""
     if not (out / "report.json").exists():  # a rerun reads the reports already made
@@ -105,8 +116,10 @@ def one_walker(walker: str, seeds, work: Path) -> list[dict]:
             for track, extra in (("as tracked", []), ("errors carried", ["--accuracy", str(accuracy)])):
                 name = "raw" if not extra else "carried"
                 tracked = here / f"{name}.csv"
-                if not tracked.exists():
-                    run("track", str(video), *extra, "--out", str(tracked))
+                if not tracked.exists() and extra:
+                    carry(here / "raw.csv", accuracy, tracked)
+                elif not tracked.exists():
+                    run("track", str(video), "--out", str(tracked))
                 z, strikes = timing_z(tracked, here / "video.truth.csv")
                 truth = strength if kind == "effect" else 0.0
                 got = diagnosed(tracked, params, here / f"diagnosis_{name}", hidden, truth)

@@ -76,7 +76,8 @@ def describe_phase_errors(errors) -> str:
     side = "left" if worst["foot"] == "L" else "right"
     return (f"largest bias {math.degrees(worst['bias']):+.3f} deg (walk to walk "
             f"{math.degrees(worst['sd']):.3f}) in {name} at {worst['phase']:.2f} of a {side}-stance step; "
-            f"heel-strike time_sd times {errors.timing_scale:.2f}")
+            f"heel-strike time_sd times {errors.timing_scale['L']:.2f} (left strikes) and "
+            f"{errors.timing_scale['R']:.2f} (right)")
 
 
 def cmd_accuracy(args) -> int:

@@ -111,6 +111,9 @@ def cmd_fit(args) -> int:
         se = result.std[name]
         print(f"{name:<28s} {result.estimates[name]: .6g} "
               + (f"+/- {se:.2g}" if math.isfinite(se) else "(not determined by these data)"))
+    if result.shared_widening:
+        print("standard errors widened by the errors the samples share by phase (the file's *_phase_sd): "
+              + ", ".join(f"{n} x{f:.2g}" for n, f in result.shared_widening.items()))
     if result.undetermined:
         print(f"not determined: {', '.join(result.undetermined)} (the information is singular along "
               "a direction they share; no standard error is given; see the warnings)", file=sys.stderr)

@@ -33,6 +33,7 @@ import math
 import warnings
 
 import numpy as np
+import scipy.sparse as sp
 from scipy import special
 from toywalk.model.trajectory import SIGNALS
 
@@ -40,7 +41,7 @@ from .measurement import Observations
 
 __all__ = ["COMPONENTS", "FEATURES", "NOISE_INFLATION", "SCATTER_ORDER", "ResidualReport", "feature_misfit",
            "finite_mean", "missed_features", "phase_bins", "residual_report", "scatter_noise",
-           "step_dependence", "step_features"]
+           "shared_errors", "step_dependence", "step_features"]
 
 #: Per-step gait features (:func:`step_features`), with their unit.
 FEATURES = {"duration": "s", "lean_range": "rad", "steer_range": "rad", "steer_mean": "rad",
@@ -154,6 +155,25 @@ def phase_bins(obs: Observations) -> int:
 
     floor = max(3, math.ceil((1.0 - _STEPS_GIVEN_UP) * complete(2)))
     return next((b for b in range(_BINS, 1, -1) if complete(b) >= floor), _BINS)
+
+
+def shared_errors(obs: Observations, bins: int | None = None) -> sp.csr_matrix:
+    """Loadings of the errors each sample shares with the same phase of every step of its foot,
+    shape (n_obs, cells): row ``i`` holds ``obs.phase_sd[i]`` (rad) in the column of its cell
+    (signal, stance foot, phase bin of :func:`phase_bins`), so that these errors' covariance is
+    ``L @ L.T`` with one standard normal per cell. A tracker's bias by phase (what its
+    calibration leaves uncertain, tracking/accuracy_phase.py) repeats in every step of a foot,
+    so averaging more steps does not shrink it; an estimate that leans on that phase carries it
+    whole (:meth:`toywalk.sysid.fit.FitResult` standard errors). Empty columns where the file
+    gives no ``*_phase_sd``."""
+    bins = phase_bins(obs) if bins is None else int(bins)
+    b = np.minimum((obs.phase * bins).astype(int), bins - 1)
+    foot = (obs.stance[obs.step] == "R").astype(int)
+    cell = (obs.signal * 2 + foot) * bins + b
+    loads = sp.csr_matrix((obs.phase_sd, (np.arange(len(cell)), cell)),
+                          shape=(len(cell), len(SIGNALS) * 2 * bins))
+    loads.eliminate_zeros()
+    return loads
 
 
 def _pattern(x: np.ndarray, shared: np.ndarray | None = None, feet=None) -> tuple[float, float, float]:

@@ -42,10 +42,11 @@ def match_strikes(true_events, measured_events, step: float, dt: float) -> dict:
 
     Returns counts (``true``, ``found``, ``missed``, ``invented``, ``wrong_foot``) and the timing
     errors of the pairs in frames of ``dt`` s (``timing_rms_frames``, ``timing_max_frames``) and
-    over the measured ``time_sd`` (``timing_z_rms``); None where there is no pair (or no SD).
+    over the measured ``time_sd`` (``timing_z_rms``, and by the measured strike's foot
+    ``timing_z_by_foot``: ``{foot: [z, ...]}``); None where there is no pair (or no SD).
     """
     measured = list(measured_events)
-    errors, z, wrong_foot, missed = [], [], 0, 0
+    errors, z, wrong_foot, missed, by_foot = [], [], 0, 0, {}
     for ev in true_events:
         if not measured:
             missed += 1
@@ -58,9 +59,11 @@ def match_strikes(true_events, measured_events, step: float, dt: float) -> dict:
         errors.append((m["time"] - ev["time"]) / dt)
         if "time_sd" in m:
             z.append((m["time"] - ev["time"]) / m["time_sd"])
+            by_foot.setdefault(m["foot"], []).append(float(z[-1]))
         wrong_foot += m["foot"] != ev["foot"]
     return {"true": len(true_events), "found": len(measured_events), "missed": missed,
             "invented": len(measured), "wrong_foot": wrong_foot,
             "timing_rms_frames": float(np.sqrt(np.mean(np.square(errors)))) if errors else None,
             "timing_max_frames": float(np.max(np.abs(errors))) if errors else None,
-            "timing_z_rms": float(np.sqrt(np.mean(np.square(z)))) if z else None}
+            "timing_z_rms": float(np.sqrt(np.mean(np.square(z)))) if z else None,
+            "timing_z_by_foot": by_foot}
