@@ -23,10 +23,12 @@ def register(subparsers) -> None:
                    help="the base model's parameter file; with several walks, one per walk (its "
                         "condition), in their order, or one for all")
     p.add_argument("--free", default="", help="base parameters to fit (comma-separated names)")
-    p.add_argument("--effects", help="restrict the candidate effects (comma-separated names)")
+    p.add_argument("--effects", help="restrict the candidate effects (comma-separated names; none: "
+                                     "no library effect)")
     p.add_argument("--parameters",
                    help="held parameters that are candidate causes (comma-separated; default: "
-                        "foot radii, mass offsets, hip width, slope)")
+                        "foot radii, mass offsets, hip width, slope; none: no parameter; with "
+                        "--effects none the analysis searches the port dictionary at once)")
     p.add_argument("--model", choices=("auto", "periodic", "transient"), default="auto",
                    help="the base model of the walk: auto tests whether the walk is on its limit "
                         "cycle (as `toywalk fit`); summary statistics are always of the limit cycle")
@@ -131,7 +133,9 @@ def _print_next_walk(result) -> None:
 
 
 def _split(text):
-    """A comma-separated option as a list of names (None when not given)."""
+    """A comma-separated option as a list of names (None when not given, empty for ``none``)."""
+    if text and text.strip().lower() == "none":
+        return []
     return [n.strip() for n in text.split(",") if n.strip()] if text else None
 
 

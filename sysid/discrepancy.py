@@ -252,6 +252,9 @@ def diagnose(table: TrajectoryTable, params: Params, *, free=(), effects=None, p
     **fit_options
         Passed to every fit (``offsets``, ``priors``, ``strikes``, ...).
     """
+    if not candidates(params, free, effects, parameters) and not missing_force:
+        raise DiagnoseError("no candidate causes to test: give some effects or parameters, or let the "
+                            "analysis search the port dictionary for the missing force")
     if model == "auto":
         model = chosen_model([table], [params], free, progress=progress, **fit_options)
     with FitPool(workers, scheduler) as pool:
@@ -329,7 +332,7 @@ def _diagnose(table: TrajectoryTable, params: Params, *, free, effects, paramete
                         "linear_se": s["se"]})
     ranking.sort(key=lambda r: r["score_log_p"])
     seconds["screening"] = time.perf_counter() - lap
-    level = alpha / k
+    level = alpha / max(k, 1)
     significant = [r for r in ranking if r["score_p"] < level]
     evidence = _evidence(res_base, features, ranking[:3])
     if noise_note:

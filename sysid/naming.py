@@ -124,6 +124,8 @@ def candidates(params: Params, free=(), effects=None, parameters=None) -> list[C
             raise DiagnoseError(f"unknown effect {name!r}; the library has {', '.join(EFFECTS)}")
         names.append("effects." + name.removeprefix("effects."))
     names += list(PARAMETERS if parameters is None else parameters)
+    if not names:  # none asked for: the analysis goes straight to the missing force's search
+        return []
     out = []
     for name in names:
         if name in free:

@@ -600,6 +600,8 @@ def diagnose_summary(params: Params, data: SummaryData, *, free=(), effects=None
             data=data, base=base, fits={}, pairs=[], sensitivity={}, rule=RULE, alpha=alpha,
             seconds={**seconds, "total": time.perf_counter() - t_start})
     pool = candidates(params, measured, effects, parameters)
+    if not pool:
+        raise DiagnoseError("no candidate causes to test: give some effects or parameters")
     K = len(pool)
     at_measured = None  # the base model's gait at the measured values: one more start
     if data.priors:

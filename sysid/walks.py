@@ -527,6 +527,8 @@ def diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], 
     transient model when any walk's periodicity test finds it off its cycle,
     :func:`toywalk.sysid.discrepancy.chosen_model`); ``fit_options`` go to :func:`fit_walks`.
     """
+    if not candidates(params[0], free, effects, parameters):
+        raise DiagnoseError("no candidate causes to test: give some effects or parameters")
     if model == "auto":
         model = chosen_model(tables, params, free, progress=progress, noise_sd=noise_sd, **fit_options)
     fit_options["model"] = model

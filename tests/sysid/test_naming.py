@@ -170,3 +170,24 @@ def test_the_default_candidates_are_the_librarys_effects_not_the_port_terms():
     named = candidates(params, effects=["hinge_stiffness", "impact_lean_arrest"], parameters=[])
     assert [c.name for c in named] == ["effects.hinge_stiffness", "effects.impact_lean_arrest"]
     assert named[0].prior_sd == EFFECTS["hinge_stiffness"].typical
+
+
+def test_no_causes_asked_for_leaves_only_the_missing_forces_search(tmp_path):
+    """``--effects none --parameters none``: no candidate, which only the search of the port
+    dictionary can use; without it, and in the analyses of several walks, a one-line refusal
+    before any fit. Causes asked for that are all free still refuse as before."""
+    from toywalk.sysid.cmd_diagnose import _split
+    from toywalk.sysid.discrepancy import diagnose
+    from toywalk.sysid.naming import DiagnoseError
+    from toywalk.sysid.walks import diagnose_walks
+
+    params = load_params(DATA / "params" / "stable-toy.toml")
+    assert _split("none") == [] and _split(" None ") == [] and _split(None) is None
+    assert candidates(params, effects=[], parameters=[]) == []
+    table = TrajectoryTable([0.0, 1.0], {}, ["L", "L"])  # never read: the refusal comes first
+    with pytest.raises(DiagnoseError, match="no candidate causes to test"):
+        diagnose(table, params, effects=[], parameters=[], missing_force=False)
+    with pytest.raises(DiagnoseError, match="no candidate causes to test"):
+        diagnose_walks([table], [params], effects=[], parameters=[])
+    with pytest.raises(DiagnoseError, match="all free or fixed"):
+        candidates(params, free=["slope"], effects=[], parameters=["slope"])
