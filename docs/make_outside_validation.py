@@ -20,7 +20,9 @@ as soon as it is measured (a killed run keeps its rows; seeds already in the tab
 its likelihood ratio against the base, its held-out gain (the base's held-out chi-square less
 its own) and, where the analysis named it, the held-out chi-square of the base and of the
 extended model and the held-out RMS of each signal (rad); the best fitted other candidate and
-its likelihood ratio; the seconds the analysis took and its evidence (why that verdict). A walk
+its likelihood ratio; where no cause was named, what the search of the port dictionary found
+(``missing_force``: each term's port and form, coefficient, 95 % interval and unit; ``none``) and
+why it stopped; the seconds the analysis took and its evidence (why that verdict). A walk
 that cannot be made (the clearing walker falls in MuJoCo from some starts) is a row with verdict
 ``no walk`` and the reason.
 
@@ -58,7 +60,7 @@ SEEDS = (0, 2, 3)
 COLUMNS = ["seed", "verdict", "cause", "causes", "candidate", "candidate_named", "lr", "held_out_gain",
            "held_out_chi2_base", "held_out_chi2_extended",
            *(f"rms_{which}_{name}" for which in ("base", "extended") for name in SIGNALS),
-           "runner_up", "runner_up_lr", "seconds", "evidence"]
+           "runner_up", "runner_up_lr", "missing_force", "missing_force_stop", "seconds", "evidence"]
 
 
 def _append(path: Path, row: dict) -> None:
@@ -90,6 +92,8 @@ def _fmt(value) -> str:
 
 def row_of(seed: int, d, seconds: float) -> dict:
     """The table's row of one analysis ``d`` (a :class:`toywalk.sysid.discrepancy.Diagnosis`)."""
+    from toywalk.sysid.missing_force import term_sentence
+
     fitted = [r for r in d.ranking if "lr" in r]
     named = d.causes[0] if d.causes else None
     pick = next((r for r in fitted if r["effect"] == named), fitted[0] if fitted else None)
@@ -106,6 +110,10 @@ def row_of(seed: int, d, seconds: float) -> dict:
     others = [r for r in fitted if pick is None or r["effect"] != pick["effect"]]
     row["runner_up"] = others[0]["effect"] if others else ""
     row["runner_up_lr"] = _fmt(others[0]["lr"]) if others else ""
+    found = d.missing_force
+    if found is not None:
+        row["missing_force"] = "; ".join(term_sentence(t) for t in found.terms) or "none"
+        row["missing_force_stop"] = found.stop
     row["seconds"] = f"{seconds:.1f}"
     row["evidence"] = d.evidence
     return row
