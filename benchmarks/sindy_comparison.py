@@ -30,7 +30,7 @@ observations' complete steps (:func:`toywalk.sysid.measurement.observations`: 11
   in any state is stopped and counted as diverged (:func:`_diverged`); the RMS is over the phases
   that did not. Sweep: degree 1 and 2 at thresholds 0.001, 0.01, 0.1, degree 3 at 0.001 (degree 3
   has 165 candidate terms an equation against about 100 samples a fold: the regression is
-  underdetermined, and its simulations take about 3 s a phase); a threshold of 1 or more would
+  underdetermined, and its simulations take 0.8-1.6 s a step); a threshold of 1 or more would
   remove the kinematic rows' coefficient 1 (angle' = rate). The same sweep on the noise-free walk
   (one per walker: the seeds differ only in the noise) is PySINDy's ceiling here.
 - Terms: each PySINDy model fitted on all 11 phases, and on the same walk without the spring
