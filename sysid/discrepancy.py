@@ -255,20 +255,24 @@ def diagnose(table: TrajectoryTable, params: Params, *, free=(), effects=None, p
     if not candidates(params, free, effects, parameters) and not missing_force:
         raise DiagnoseError("no candidate causes to test: give some effects or parameters, or let the "
                             "analysis search the port dictionary for the missing force")
+    started = time.perf_counter()  # the model's choice is part of the analysis's time
     if model == "auto":
         model = chosen_model([table], [params], free, progress=progress, **fit_options)
     with FitPool(workers, scheduler) as pool:
         return _diagnose(table, params, free=free, effects=effects, parameters=parameters, alpha=alpha,
                          model=model, progress=progress, pool=pool, tie_design=tie_design,
-                         missing_force=missing_force, **fit_options)
+                         missing_force=missing_force, started=started, **fit_options)
 
 
 def _diagnose(table: TrajectoryTable, params: Params, *, free, effects, parameters, alpha: float,
               model: str, progress, pool: FitPool, tie_design: bool, missing_force: bool = False,
-              **fit_options) -> Diagnosis:
+              started: float | None = None, **fit_options) -> Diagnosis:
     say = progress or (lambda _msg: None)
     clock = time.perf_counter()
     seconds: dict = {}
+    if started is not None:  # the choice of the base model (diagnose's 'auto') came first
+        seconds["model_choice"] = clock - started
+        clock = started
     if not 0 < alpha < 1:
         raise DiagnoseError(f"alpha must be in (0, 1), got {alpha!r}")
     free = list(free)

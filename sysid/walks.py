@@ -529,20 +529,21 @@ def diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], 
     """
     if not candidates(params[0], free, effects, parameters):
         raise DiagnoseError("no candidate causes to test: give some effects or parameters")
+    started = time.perf_counter()  # the model's choice is part of the analysis's time
     if model == "auto":
         model = chosen_model(tables, params, free, progress=progress, noise_sd=noise_sd, **fit_options)
     fit_options["model"] = model
     with FitPool(workers, scheduler) as pool:
         return _diagnose_walks(tables, params, free=free, effects=effects, parameters=parameters,
                                alpha=alpha, noise_sd=noise_sd, progress=progress, pool=pool,
-                               tie_design=tie_design, **fit_options)
+                               tie_design=tie_design, started=started, **fit_options)
 
 
 def _diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], *, free, effects,
                     parameters, alpha: float, noise_sd: dict | None, progress, pool: FitPool,
-                    tie_design: bool, **fit_options) -> WalksDiagnosis:
+                    tie_design: bool, started: float | None = None, **fit_options) -> WalksDiagnosis:
     say = progress or (lambda _msg: None)
-    clock = time.perf_counter()
+    clock = time.perf_counter() if started is None else started
     if not 0 < alpha < 1:
         raise DiagnoseError(f"alpha must be in (0, 1), got {alpha!r}")
     free = list(free)

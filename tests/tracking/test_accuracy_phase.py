@@ -90,8 +90,9 @@ def test_a_walk_carries_the_bias_as_a_shared_error(errors):
 
 def test_strike_times_sd_is_scaled_by_its_measured_z():
     """Strikes found 2e-4 s off and stated with 1e-4 s: the scale is about 2 (72 strikes a foot:
-    the median absolute error's relative SE about 1/sqrt(2 x 0.37 x 72), 0.14), and the strikes' time_sd is multiplied by it; a tracker
-    stating too large an SD keeps it (the scale never falls below 1)."""
+    the median absolute error's relative SE about 1/sqrt(2 x 0.37 x 72), 0.14), and the strikes'
+    time_sd is multiplied by it; a tracker stating too large an SD keeps it (the scale never falls
+    below 1)."""
     over = measure([_walk(seed, steps=48) for seed in range(3)])
     assert over.timing_scale["L"] == pytest.approx(2.0, rel=0.35)
     assert over.timing_scale["R"] == pytest.approx(2.0, rel=0.35)
