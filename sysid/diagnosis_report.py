@@ -143,7 +143,7 @@ def _markdown(d: Diagnosis) -> str:
              "## Base model", "",
              f"Model: {_model_words(d.base.model)}, used by every fit of the analysis. Free: "
              f"{', '.join(d.base.free) or 'none'}; chi-square {d.base.chi2:.1f} over "
-             f"{d.base.n_residuals} residuals; noise {d.base.noise_source}.", "",
+             f"{d.base.n_residuals} residuals; noise {d.base.noise_source}." + _shared_words(d), "",
              "| signal | RMS (deg) | repeated pattern p | Ljung-Box p | runs p |", "|---|---|---|---|---|"]
     for name, t in d.residuals.tests.items():
         lines.append(f"| {name} | {math.degrees(t['rms']):.3f} | {t['pattern_p']:.3g} | "
@@ -301,6 +301,18 @@ def _in_report_units(value: float, unit: str) -> str:
     if unit == "rad":
         return f"{math.degrees(value):.4g} deg"
     return f"{value:.4g} {unit}"
+
+
+def _shared_words(d: Diagnosis) -> str:
+    """report.md's sentence on errors the samples share by phase (a tracker's, carried by
+    ``track --accuracy``): how much they widen the standard errors and intervals; empty without."""
+    widened = {**d.base.shared_widening,
+               **{r["effect"]: r["shared_widening"] for r in d.ranking if r.get("shared_widening")}}
+    if not widened:
+        return ""
+    return (" The file carries errors shared by each phase of the step (`*_phase_sd`): every standard "
+            "error and interval includes them, which widens them (" +
+            ", ".join(f"{n} x{f:.2g}" for n, f in widened.items()) + ").")
 
 
 def _model_words(model: str) -> str:

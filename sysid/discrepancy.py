@@ -371,6 +371,7 @@ def _diagnose(table: TrajectoryTable, params: Params, *, free, effects, paramete
                    lr_p=lr_p_value(lr, bool(by_name[name].side)), score=lr,
                    estimate={name: est}, interval={name: [est - 1.96 * se, est + 1.96 * se]},
                    std=se, log_bayes_factor=_savage_dickey(est, se, by_name[name]),
+                   shared_widening=ext.shared_widening.get(name),
                    max_abs_eigenvalue=ext.gait.get("max_abs_eigenvalue"))
     fitted = sorted((r for r in to_fit if r.get("fitted")), key=lambda r: -r["lr"])
     held: dict = {}

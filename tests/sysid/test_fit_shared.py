@@ -124,3 +124,18 @@ def test_a_files_phase_sd_widens_the_fits_standard_errors(walk):
         assert shared.estimates[name] == pytest.approx(plain.estimates[name], rel=1e-9)
         assert shared.std[name] > 1.2 * plain.std[name]
         assert shared.shared_widening[name] > 1.2
+
+
+def test_the_report_says_the_intervals_hold_the_shared_errors():
+    """report.md's base-model paragraph names the widening of the base's and the candidates'
+    standard errors where the file carries errors shared by phase, and says nothing without."""
+    from types import SimpleNamespace
+
+    from toywalk.sysid.diagnosis_report import _shared_words
+
+    base = SimpleNamespace(shared_widening={"foot_radius": 1.41})
+    rows = [{"effect": "effects.impact_trailing_share", "shared_widening": 2.06}, {"effect": "slope"}]
+    words = _shared_words(SimpleNamespace(base=base, ranking=rows))
+    assert "*_phase_sd" in words and "foot_radius x1.4" in words and "impact_trailing_share x2.1" in words
+    plain = SimpleNamespace(base=SimpleNamespace(shared_widening={}), ranking=[{"effect": "slope"}])
+    assert _shared_words(plain) == ""
