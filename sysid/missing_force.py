@@ -193,6 +193,11 @@ def discover(table, base: FitResult, free, *, alpha: float, pool: FitPool, noise
             fits = fits[2:]
         scored = held_out_score(table, fits, noise)
         gain = held["current"]["chi2"] - scored["chi2"]
+        if math.isnan(gain):  # a fold's fit failed: no prediction to compare, said as such
+            stop = (f"{best['parameter']} fits better but its held-out prediction could not be scored "
+                    f"({scored.get('reason') or held['current'].get('reason') or 'no held-out chi-square'})")
+            record["outcome"] = stop
+            break
         if not gain > 0:
             stop = (f"{best['parameter']} does not predict held-out strides better (held-out chi-square "
                     f"{held['current']['chi2']:.1f} -> {scored['chi2']:.1f})")
