@@ -50,7 +50,7 @@ from scipy import special
 from scipy.sparse.linalg import splu
 from toywalk.model.collocation import BVP, bvp, contact_travel, cycle_jacobian, initial_guess
 from toywalk.model.effects import EFFECTS
-from toywalk.model.gait import GaitNotFound, _lateral_singular, find_gait, solve_fixed_point
+from toywalk.model.gait import GaitNotFound, find_gait, lateral_singular, solve_fixed_point
 from toywalk.model.parameters import INPUT_NAMES, PARAMETER_NAMES, ParameterError, Params
 from toywalk.model.trajectory import SIGNALS, TrajectoryTable
 from toywalk.model.walker import STATE_NAMES, StepFailure, Walker, is_planar_symmetric
@@ -416,7 +416,7 @@ def _start(params: Params, period: int, free: list[str], z_guess):
     try:
         gait = find_gait(params) if z_guess is None else None
         planar = gait.planar if gait is not None else (is_planar_symmetric(params)
-                                                        and _lateral_singular(params))
+                                                        and lateral_singular(params))
         if planar and _PLANAR_BREAKERS & set(free):
             raise FitError("this walker is solved in its planar reduction (a point-mass limit): "
                            f"{sorted(_PLANAR_BREAKERS & set(free))} cannot be fitted")
