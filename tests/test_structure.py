@@ -62,9 +62,6 @@ KNOWN_PRIVATE_IMPORTS = {
     ("toywalk.sysid.walks", "toywalk.sysid.fit", "_contact_sigma"): _WALKS_FIT,
     ("toywalk.sysid.walks", "toywalk.sysid.fit", "_sigma_from"): _WALKS_FIT,
     ("toywalk.sysid.walks", "toywalk.sysid.discrepancy", "_further_evidence"): _WALKS_DISCREPANCY,
-    ("toywalk.sysid.diagnosis_report", "toywalk.sysid.diagnostics", "_save"):
-        "to be removed: one public function writes a figure atomically (beside the atomic JSON "
-        "and text writers of model/files.py), imported by both",
 }
 
 
