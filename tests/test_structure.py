@@ -37,12 +37,6 @@ KNOWN_CYCLES: dict[tuple[str, ...], str] = {}
 
 #: Imports inside a function that close a cycle today: (importing module, imported module).
 KNOWN_DEFERRED_CYCLES = {
-    # the cycle model: collocation, compiled, engine, gait, walker
-    ("toywalk.model.compiled", "toywalk.model.collocation"):
-        "to be removed: the list of compiled libraries and their builders move to a prebuild module "
-        "that imports engine and collocation, so that compiled.py imports neither",
-    ("toywalk.model.compiled", "toywalk.model.engine"):
-        "to be removed: as for collocation, by the same prebuild module",
     # the cycle sysid: design, discrepancy, walks
     ("toywalk.sysid.discrepancy", "toywalk.sysid.design"):
         "to be removed: weigh_ties moves out of discrepancy.py to a module that builds on both, so "
