@@ -12,7 +12,7 @@ The procedure, and the rule that decides (``alpha`` is the family-wise false-ala
    (:mod:`toywalk.sysid.residuals`): a pattern repeated every step, whiteness, gait features.
 2. **Screening by score tests** of every candidate at the base fit (Rao 1948: the gradient of
    chi-square in the held parameter, projected off the fitted ones; no refit, one Jacobian per
-   candidate: :func:`toywalk.sysid.fit.score_tests`). A candidate whose base value sits on a
+   candidate: :func:`toywalk.sysid.score.score_tests`). A candidate whose base value sits on a
    physical bound (a damper at zero) is tested one-sided.
 3. **Adequate** when no candidate's score p-value is below ``alpha / K`` (K candidates,
    Bonferroni) and no signal shows a repeated pattern at ``alpha``.

@@ -72,7 +72,6 @@ from toywalk.model.parameters import PARAMETER_NAMES, ParameterError, Params
 from toywalk.model.statics import can_stand
 from toywalk.model.walker import Walker
 
-from .fit import fit_bounds
 from .naming import (
     ALPHA,
     SEPARATION,
@@ -85,6 +84,7 @@ from .naming import (
     lr_p_value,
     rule_text,
 )
+from .problem import fit_bounds
 
 __all__ = ["LENGTH_REACH", "NOT_VISIBLE", "PAIR_MEMBERS", "PARALLEL", "PHYSICAL", "SCAN_POINTS",
            "TARGETS", "SummaryData",

@@ -43,18 +43,10 @@ KNOWN_DEFERRED_CYCLES = {
         "that the one-walk analysis does not import the design built on its rule",
 }
 
-_WALKS_FIT = ("to be removed: what the several-walk fit shares with fit() becomes fit.py's public, "
-              "documented interface (or a module of its own that both import)")
 _WALKS_DISCREPANCY = ("to be removed: what the several-walk diagnosis shares with the one-walk "
                       "analysis becomes discrepancy.py's public, documented interface")
 #: Private names imported from another module today: (importing module, defining module, name).
 KNOWN_PRIVATE_IMPORTS = {
-    ("toywalk.sysid.walks", "toywalk.sysid.fit", "_setup"): _WALKS_FIT,
-    ("toywalk.sysid.walks", "toywalk.sysid.fit", "_continued"): _WALKS_FIT,
-    ("toywalk.sysid.walks", "toywalk.sysid.fit", "_ipopt_options"): _WALKS_FIT,
-    ("toywalk.sysid.walks", "toywalk.sysid.fit", "_STAGE_PATH"): _WALKS_FIT,
-    ("toywalk.sysid.walks", "toywalk.sysid.fit", "_contact_sigma"): _WALKS_FIT,
-    ("toywalk.sysid.walks", "toywalk.sysid.fit", "_sigma_from"): _WALKS_FIT,
     ("toywalk.sysid.walks", "toywalk.sysid.discrepancy", "_further_evidence"): _WALKS_DISCREPANCY,
 }
 
