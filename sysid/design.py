@@ -42,7 +42,7 @@ from toywalk.model.walker import STATE_NAMES
 from .fit import FitError, FitResult, fit, held_jacobian
 from .heldout import FitPool, run_fits
 from .naming import ALPHA, SEPARATION, Candidate, lr_p_value
-from .walks import stacked
+from .problem import stacked
 
 __all__ = ["CONDITIONS", "Condition", "DesignError", "WalkColumns", "next_walk", "separation",
            "walk_columns"]

@@ -31,6 +31,7 @@ into one NLP) are both built on this interface, with the same IPOPT options
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from functools import cache, cached_property
 
 import casadi as ca
@@ -63,7 +64,7 @@ from .residuals import NOISE_INFLATION, scatter_noise, shared_errors
 
 __all__ = ["CONTACT_KEYS", "MODELS", "STAGE_PATH", "FitError", "FitProblem", "check_request", "contact_sigma",
            "continued", "estimates_only", "fit_bounds", "fit_line", "gait_period", "ipopt_options",
-           "parameter_bounds", "setup", "shared_covariance", "sigma_from", "tied",
+           "parameter_bounds", "setup", "shared_covariance", "sigma_from", "stacked", "tied",
            "with_values"]
 
 #: The models of a walk :func:`toywalk.sysid.fit.fit` knows.
@@ -1014,6 +1015,19 @@ def shared_covariance(cov: np.ndarray, jac: np.ndarray, sigma: np.ndarray, loads
     white = np.maximum(1.0 - np.asarray(q.multiply(q).sum(axis=1)).ravel(), 0.0)
     tail = cov @ jac[n:].T
     return through @ through.T + (gain * white) @ gain.T + tail @ tail.T
+
+
+def stacked(shared: Sequence[np.ndarray], nuisance: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Several walks' Jacobian columns as one problem's: the shared unknowns' columns (each walk's
+    shape (n_k, s)) one above the other, the nuisances' (n_k, m_k) block-diagonal, each in its
+    walk's rows. Returns the shared (sum n_k, s) and nuisance (sum n_k, sum m_k) columns."""
+    rows = sum(len(a) for a in shared)
+    block = np.zeros((rows, sum(b.shape[1] for b in nuisance)))
+    r = c = 0
+    for a, b in zip(shared, nuisance, strict=True):
+        block[r:r + len(a), c:c + b.shape[1]] = b
+        r, c = r + len(a), c + b.shape[1]
+    return np.vstack(shared), block
 
 
 def continued(problem: FitProblem, w0: np.ndarray, result: FitResult) -> np.ndarray:

@@ -37,7 +37,7 @@ import numpy as np
 from toywalk.model.parameters import Params
 from toywalk.model.trajectory import SIGNALS, TrajectoryTable
 
-from .discrepancy import EXPLAINS, _further_evidence, chosen_model, weigh_ties
+from .discrepancy import EXPLAINS, chosen_model
 from .fitresult import FitResult
 from .heldout import FitPool, held_out_fits, held_out_score, masked, run_fits, strides
 from .measurement import observations
@@ -68,9 +68,11 @@ from .problem import (
     ipopt_options,
     setup,
     sigma_from,
+    stacked,
 )
 from .residuals import ResidualReport, feature_misfit, missed_features, residual_report, scatter_noise
 from .score import held_jacobian, score_statistics
+from .ties import further_walk_clause, weigh_ties
 
 __all__ = ["WALKS_RULE", "WalksDiagnosis", "WalksFit", "diagnose_walks", "fit_walks", "held_out_walks",
            "stacked", "without_unweighed_contacts"]
@@ -118,19 +120,6 @@ class WalksFit:
     def interval(self, name: str, z: float = 1.959964) -> tuple[float, float]:
         """The 95 % (``z``) interval of ``name``'s value in the first walk's terms."""
         return (self.estimates[name] - z * self.std[name], self.estimates[name] + z * self.std[name])
-
-
-def stacked(shared: Sequence[np.ndarray], nuisance: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-    """Several walks' Jacobian columns as one problem's: the shared unknowns' columns (each walk's
-    shape (n_k, s)) one above the other, the nuisances' (n_k, m_k) block-diagonal, each in its
-    walk's rows. Returns the shared (sum n_k, s) and nuisance (sum n_k, sum m_k) columns."""
-    rows = sum(len(a) for a in shared)
-    block = np.zeros((rows, sum(b.shape[1] for b in nuisance)))
-    r = c = 0
-    for a, b in zip(shared, nuisance, strict=True):
-        block[r:r + len(a), c:c + b.shape[1]] = b
-        r, c = r + len(a), c + b.shape[1]
-    return np.vstack(shared), block
 
 
 def without_unweighed_contacts(table: TrajectoryTable, noise_sd: dict | None = None) -> TrajectoryTable:
@@ -681,7 +670,7 @@ def _diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params],
         if close:
             further = weigh_ties(tables, base.walks, cands, close, pool=pool, alpha=alpha, say=say,
                                  **fit_options)
-            evidence += _further_evidence(further)
+            evidence += further_walk_clause(further)
     note = _pattern_note(patterns)
     if note:
         evidence += f"; the base model leaves a pattern repeated every step ({note})"

@@ -36,19 +36,10 @@ PACKAGES = {"model": "toywalk.model", "tracking": "toywalk.tracking", "sysid": "
 KNOWN_CYCLES: dict[tuple[str, ...], str] = {}
 
 #: Imports inside a function that close a cycle today: (importing module, imported module).
-KNOWN_DEFERRED_CYCLES = {
-    # the cycle sysid: design, discrepancy, walks
-    ("toywalk.sysid.discrepancy", "toywalk.sysid.design"):
-        "to be removed: weigh_ties moves out of discrepancy.py to a module that builds on both, so "
-        "that the one-walk analysis does not import the design built on its rule",
-}
+KNOWN_DEFERRED_CYCLES: dict[tuple[str, str], str] = {}
 
-_WALKS_DISCREPANCY = ("to be removed: what the several-walk diagnosis shares with the one-walk "
-                      "analysis becomes discrepancy.py's public, documented interface")
 #: Private names imported from another module today: (importing module, defining module, name).
-KNOWN_PRIVATE_IMPORTS = {
-    ("toywalk.sysid.walks", "toywalk.sysid.discrepancy", "_further_evidence"): _WALKS_DISCREPANCY,
-}
+KNOWN_PRIVATE_IMPORTS: dict[tuple[str, str, str], str] = {}
 
 
 # ------------------------------------------------------------------------------ reading the source
