@@ -169,8 +169,8 @@ def _analyse(out: Path, params_path: Path, sample: Path, workers: int, sample_st
             raise CommandError(f"sampling: {err}") from err
         posterior = summary.to_json()
         atomic_write_json(chain.with_suffix(".json"), posterior)
-        from toywalk.sysid.diagnostics import write_report
         from toywalk.sysid.sample import posterior_from_fit
+        from toywalk.sysid.sample_report import write_report
 
         write_report(chain, posterior, out / "posterior", posterior_from_fit(report, table)[0], table)
         seconds["sample"] = time.perf_counter() - lap

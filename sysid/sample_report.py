@@ -1,4 +1,6 @@
-"""Figures and a summary page of a sampling run (``toywalk sample --report DIR``).
+"""Figures and a summary page of a sampling run (``toywalk sample --report DIR``), and the
+posterior predictive checks they show: the sampler's report, as :mod:`toywalk.sysid.diagnosis_report`
+is the diagnosis's.
 
 Trace plots (every walker of every ensemble), a corner plot of the kept draws (after burn-in,
 thinned by half an autocorrelation time; ``corner``), the posterior of the gait's max |eigenvalue|
