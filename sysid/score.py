@@ -51,7 +51,8 @@ def held_jacobian(table: TrajectoryTable, result: FitResult, names) -> tuple[np.
     -------
     jac : ndarray, shape (n_residuals, n_free + n_names + n_nuisances)
         Columns: ``result.free``, then ``names``, then the fit's other unknowns (a transient's
-        free start, offsets, the contacts' origin, time offset: :meth:`FitProblem.jacobian`).
+        free start, offsets, the contacts' origin, time offset:
+        :meth:`toywalk.sysid.problem.FitProblem.jacobian`).
     r : ndarray, shape (n_residuals,)
     """
     free = list(result.free) + list(names)
