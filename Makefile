@@ -17,7 +17,7 @@ $(STAMP): pyproject.toml
 # together on an empty cache would each compile all of them (about 2 minutes each on 2 cores,
 # against 80-100 s shared out; under a second once cached).
 libraries: $(STAMP)
-	$(PY) -m toywalk.model.compiled --jobs 2
+	$(PY) -m toywalk.model.prebuild --jobs 2
 
 demo: libraries
 	$(VENV)/bin/toywalk demo

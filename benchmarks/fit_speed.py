@@ -15,7 +15,7 @@ rad/s off its gait's, 120 frames/s, 0.004 rad of noise; fitted from the file wit
   fits; two worker processes on two cores). The aims: fit within 5 minutes, diagnose within 10.
 - The way before: the check re-solved the walk at each perturbed parameter by IPOPT first, then
   Newton from IPOPT's solution or, where IPOPT failed, from the fit's (``previous_resolve``);
-  now Newton from the fit's, IPOPT only where Newton fails (``fit._Problem._resolve``). One
+  now Newton from the fit's, IPOPT only where Newton fails (``problem.FitProblem._resolve``). One
   re-solve each way on walks of 10 to 20 steps, and ``fit`` by default both ways on 20 steps.
   The way before is not run on 60 steps: one re-solve took 324 s there (2026-11-28), and the
   default fit ran past 15 minutes.
@@ -108,15 +108,16 @@ def resolves(folder: Path) -> list[dict]:
     from toywalk.model.parameters import load_params
     from toywalk.model.trajectory import read_trajectory
     from toywalk.sysid import fit as fitting
+    from toywalk.sysid.problem import continued, setup
 
     rows = []
     for steps in RESOLVE_STEPS:
         table = read_trajectory(write_offcycle_walk(folder / f"walk{steps}.csv", steps))
         fitted = fitting.fit(table, load_params(PARAMS), FREE, model="transient", strikes="measured",
                              check_jacobian=False)
-        problem, w0 = fitting._setup(table, fitted.params, FREE, z_guess=None, check_jacobian=True,
-                                     priors=fitted.priors, **fitted.options)
-        x = fitting._continued(problem, w0, fitted)
+        problem, w0 = setup(table, fitted.params, FREE, z_guess=None, check_jacobian=True,
+                            priors=fitted.priors, **fitted.options)
+        x = continued(problem, w0, fitted)
         problem.jacobian(x, fitted.sigma)  # sets the free start the re-solve holds
         theta = problem.theta(x)
         theta[0] += 1e-5 * problem.scale[0]  # fd_check's step
@@ -182,10 +183,10 @@ def main() -> None:
 
 def _previous_cli(argv: list[str]) -> int:
     """``toywalk ARGV`` with the check's re-solve the way before (:func:`previous_resolve`)."""
-    from toywalk.sysid import fit as fitting
     from toywalk.sysid.cli import main as cli
+    from toywalk.sysid.problem import FitProblem
 
-    fitting._Problem._resolve = lambda self, x, theta: previous_resolve(self, x, theta)
+    FitProblem._resolve = lambda self, x, theta: previous_resolve(self, x, theta)
     return cli(argv)
 
 

@@ -24,6 +24,7 @@ import casadi as ca
 from toywalk.model.files import atomic_write_json
 from toywalk.model.parameters import load_params
 from toywalk.sysid import fit as fitting
+from toywalk.sysid import problem as fit_problem
 
 sys.path.insert(0, str(Path(__file__).parent))
 import diagnose_speed  # noqa: E402  (the same walk)
@@ -71,11 +72,11 @@ def main() -> None:
         table = diagnose_speed.walk(truth)
         row = {"steps": steps}
         for way in ("clock", "naive") if steps in NAIVE_STEPS else ("clock",):
-            fitting._CLOCK_LIFTED = way == "clock"
+            fit_problem._CLOCK_LIFTED = way == "clock"
             try:
                 got = one_fit(table, toy)
             finally:
-                fitting._CLOCK_LIFTED = True
+                fit_problem._CLOCK_LIFTED = True
             row[way] = got
             print(f"{steps:5d} {way:<6s} {got['build_s']:8.2f} {got['fit_s']:7.1f} "
                   f"{got['hessian_nonzeros']:12d} {got['chi2']:10.2f}", flush=True)

@@ -26,17 +26,14 @@ import shutil
 import subprocess
 import sys
 import tempfile
-import time
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor
 from functools import cache
-from multiprocessing import get_context
 from pathlib import Path
 
 import casadi as ca
 
-__all__ = ["LIBRARIES", "build_libraries", "cache_dir", "cached_functions", "cached_with_derivatives",
-           "compile_functions", "compile_with_derivatives"]
+__all__ = ["cache_dir", "cached_functions", "cached_with_derivatives", "compile_functions",
+           "compile_with_derivatives", "compiler"]
 
 # -O1, not -O2: gcc 12 compiles the 3D walker's library in 43 s against 75 s (planar 9 s against
 # 17 s), and its functions run as fast (a step 35.8 against 36.1 us, the final state's Jacobian
@@ -56,7 +53,9 @@ def cache_dir() -> Path:
     return Path(base) / "toywalk"
 
 
-def _compiler() -> str | None:
+def compiler() -> str | None:
+    """The C compiler's command (``$CC``, else ``gcc``, else ``cc`` on the path), or None where
+    there is none or ``TOYWALK_JIT=0``: then the functions run in CasADi's virtual machine."""
     if os.environ.get("TOYWALK_JIT", "1") == "0":
         return None
     return os.environ.get("CC") or shutil.which("gcc") or shutil.which("cc")
@@ -143,7 +142,7 @@ def _cached(name: str, variant: str, build: Callable[[], dict[str, ca.Function]]
     """The functions ``build`` gives, loaded with ``options`` from the library that the index of
     ``name, variant`` names; else built, their library found or compiled by ``library`` (None:
     no compiler, the built functions serve) and the index written."""
-    cc = _compiler()
+    cc = compiler()
     if cc is None:
         return dict(build())
     index = _index(name, variant, cc)
@@ -222,7 +221,7 @@ def _library(name: str, functions: list[ca.Function], verbose: bool,
              with_sparsity: bool = False) -> Path | None:
     """Path of the cached shared library of ``functions`` (compiled now if missing), or None
     when there is no compiler or the compile fails."""
-    cc = _compiler()
+    cc = compiler()
     if cc is None:
         return None
     gen = ca.CodeGenerator(f"{name}.c", {"with_header": False, "casadi_real": "double"})
@@ -257,65 +256,3 @@ def _library(name: str, functions: list[ca.Function], verbose: bool,
                 return None
             os.replace(out, lib)
     return lib
-
-
-#: Every library the toolkit compiles, as ``(name, builder, args)`` with the builder a function
-#: of ``toywalk.model.engine`` or ``toywalk.model.collocation``, longest to compile first:
-#: seconds on this project's 2-core machine with gcc 12 at -O1 (2026-11-27), the walker's
-#: engine 49 and 10 (3D, planar), the fit's collocation intervals 38 and 22 (3D, degrees 4 and
-#: 3 of the periodic and transient fits), about 1 each planar.
-LIBRARIES = (
-    ("3D walker", "engine", (False,)),
-    ("3D collocation interval, degree 4", "native_interval", (False, 4)),
-    ("3D collocation interval, degree 3", "native_interval", (False, 3)),
-    ("planar walker", "engine", (True,)),
-    ("planar collocation interval, degree 4", "native_interval", (True, 4)),
-    ("planar collocation interval, degree 3", "native_interval", (True, 3)),
-)
-
-
-def _build(entry: tuple[str, str, tuple]) -> float:
-    """Build one of :data:`LIBRARIES` (compiling it if its library is not cached); seconds taken."""
-    from . import collocation, engine  # here: both import this module
-
-    _, builder, args = entry
-    start = time.perf_counter()
-    getattr(engine if builder == "engine" else collocation, builder)(*args)
-    return time.perf_counter() - start
-
-
-def build_libraries(jobs: int = 2) -> dict[str, float]:
-    """Compile every library in :data:`LIBRARIES` that the cache lacks, ``jobs`` at a time.
-
-    Each process that needs a library compiles it where it is missing, so processes started
-    together on an empty cache (the test suite's workers, a sampler's pool) each compile all of
-    them, one after another. Built first, ``jobs`` processes share them out: on 2 cores 80-100 s
-    (measured in `make test` from fresh clones, 2026-11-27) against about 120 s that each process
-    would otherwise spend. With every library cached and indexed this only loads them.
-
-    Parameters
-    ----------
-    jobs : int
-        Processes that compile at once (one per core).
-
-    Returns
-    -------
-    dict of str to float
-        Seconds each library took in its process (load or compile).
-    """
-    if jobs < 1:
-        raise ValueError(f"jobs must be at least 1, got {jobs}")
-    if jobs == 1 or _compiler() is None:
-        return {entry[0]: _build(entry) for entry in LIBRARIES}
-    with ProcessPoolExecutor(jobs, mp_context=get_context("spawn")) as pool:
-        return dict(zip((entry[0] for entry in LIBRARIES), pool.map(_build, LIBRARIES), strict=True))
-
-
-if __name__ == "__main__":
-    import argparse
-
-    parser = argparse.ArgumentParser(prog="python -m toywalk.model.compiled",
-                                     description="Compile every library the toolkit uses, once.")
-    parser.add_argument("--jobs", type=int, default=2, help="processes compiling at once")
-    for library, seconds in build_libraries(parser.parse_args().jobs).items():
-        print(f"{library}: {seconds:.1f} s")

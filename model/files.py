@@ -12,8 +12,8 @@ import tempfile
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
-__all__ = ["DATA_DIR", "atomic_write_json", "atomic_write_text", "read_json_object", "software_version",
-           "staged_files", "strict_json"]
+__all__ = ["DATA_DIR", "atomic_write_figure", "atomic_write_json", "atomic_write_text", "read_json_object",
+           "software_version", "staged_files", "strict_json"]
 
 #: The bundled data (data/README.md): beside the packages in the source tree, and installed with
 #: them as ``toywalk/data`` from a wheel, so the same relative path finds it in both.
@@ -60,6 +60,19 @@ def staged_files(paths: Sequence[str | Path]) -> Iterator[list[Path]]:
 def atomic_write_json(path: str | Path, data) -> None:
     """Write ``data`` as indented JSON, atomically (see :func:`atomic_write_text`)."""
     atomic_write_text(path, json.dumps(data, indent=2) + "\n")
+
+
+def atomic_write_figure(path: str | Path, fig, dpi: int = 110) -> None:
+    """Save the Matplotlib figure ``fig`` to ``path`` at ``dpi``, atomically (see
+    :func:`atomic_write_text`): drawn to a hidden temporary file beside it, with its suffix (the
+    format Matplotlib infers), then renamed into place."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp{path.suffix}")
+    try:
+        fig.savefig(tmp, dpi=dpi)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
 
 
 def strict_json(data):

@@ -37,8 +37,8 @@ from .walker import (
     is_planar_symmetric,
 )
 
-__all__ = ["Gait", "GaitNotFound", "Stability", "continue_gait", "find_gait", "planar_gaits",
-           "planar_reduction", "solve_fixed_point"]
+__all__ = ["Gait", "GaitNotFound", "Stability", "continue_gait", "find_gait", "lateral_singular",
+           "planar_gaits", "planar_reduction", "solve_fixed_point"]
 
 # Newton on the fixed point: residual tolerance (max abs over the state, rad and rad/s scaled by
 # sqrt(l/g)) and iteration cap.
@@ -496,7 +496,7 @@ def find_gait(params: Params, z_guess: np.ndarray | None = None, planar: bool | 
     if min_clearance is not None and not math.isfinite(min_clearance):
         raise ValueError(f"min_clearance must be a finite height (m) or None, got {min_clearance!r}")
     if planar is None:
-        planar = is_planar_symmetric(params) and _lateral_singular(params)
+        planar = is_planar_symmetric(params) and lateral_singular(params)
     if z_guess is not None:
         return _find_gait(params, z_guess, planar, steps_per_time_unit, min_clearance)
     # A search from nothing is deterministic: kept, so that the fits of one analysis that start
@@ -663,8 +663,11 @@ def _params_at(template: Params, vector: np.ndarray) -> Params:
     return template.replace(**dict(zip(PARAMETER_NAMES, map(float, vector), strict=True)))
 
 
-def _lateral_singular(params: Params) -> bool:
-    """True when the 3D mass matrix is (numerically) singular at the upright configuration."""
+def lateral_singular(params: Params) -> bool:
+    """True when the 3D mass matrix is (numerically) singular at the upright configuration: a
+    point-mass limit (no lateral inertia) whose gaits are solved in the planar reduction, where
+    the walker is also planar-symmetric (:func:`find_gait` by default; the fit asks it of the
+    walker it starts from)."""
     from .engine import engine
 
     x = np.zeros(10)

@@ -31,8 +31,8 @@ from .walker import STATE_NAMES, Walker
 
 __all__ = [
     "GAIT_FEATURES",
-    "FitResult",
     "GaitEvaluator",
+    "GaitTargetFit",
     "OptimisationResult",
     "clearance_constraint",
     "fit_gait_targets",
@@ -318,7 +318,7 @@ def minimise_max_eigenvalue(gait: Gait, free_names: Sequence[str],
 
 
 @dataclasses.dataclass
-class FitResult:
+class GaitTargetFit:
     """What :func:`fit_gait_targets` found.
 
     Attributes
@@ -360,7 +360,7 @@ class FitResult:
 def fit_gait_targets(gait: Gait, free_names: Sequence[str], bounds: Mapping[str, tuple[float, float]],
                      targets: Mapping[str, tuple[float, float]], max_nfev: int = 200,
                      regularisation: float = 0.0, continuation: bool = True,
-                     priors: Mapping[str, tuple[float, float]] | None = None) -> FitResult:
+                     priors: Mapping[str, tuple[float, float]] | None = None) -> GaitTargetFit:
     """Fit free parameters so that the gait's features match target values (least squares).
 
     Minimises ``sum_k ((f_k(p) - target_k) / scale_k)^2`` (+ ``regularisation * |u - u0|^2`` in the
@@ -390,7 +390,7 @@ def fit_gait_targets(gait: Gait, free_names: Sequence[str], bounds: Mapping[str,
 
     Returns
     -------
-    FitResult
+    GaitTargetFit
 
     Raises
     ------
@@ -438,7 +438,7 @@ def fit_gait_targets(gait: Gait, free_names: Sequence[str], bounds: Mapping[str,
                                        max_nfev=max_nfev, x_scale=1.0)
     final = best["gait"]
     feats = gait_features(final)
-    return FitResult(
+    return GaitTargetFit(
         params=final.params, gait=final, features=feats,
         residuals={k: (feats[k] - targets[k][0]) / targets[k][1] for k in keys},
         cost=float(best["cost"]), evaluations=evaluator.evaluations, failures=evaluator.failures,

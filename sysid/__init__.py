@@ -12,7 +12,9 @@ package does not build the model's compiled functions):
   the naming rule they share (:func:`decide`, :func:`judge`, :func:`candidates`);
 - :func:`observations`, the measured walk arranged for fitting.
 
-The modules: :mod:`~toywalk.sysid.fit`, :mod:`~toywalk.sysid.sample`,
+The modules: :mod:`~toywalk.sysid.fit` (its problem, :mod:`~toywalk.sysid.problem`; its result,
+:mod:`~toywalk.sysid.fitresult`; score tests at it, :mod:`~toywalk.sysid.score`),
+:mod:`~toywalk.sysid.sample`,
 :mod:`~toywalk.sysid.discrepancy` (one walk), :mod:`~toywalk.sysid.walks` (several),
 :mod:`~toywalk.sysid.summary` (summary numbers), :mod:`~toywalk.sysid.naming` (the rule),
 :mod:`~toywalk.sysid.residuals`, :mod:`~toywalk.sysid.design` (which walk to film next), and the
@@ -26,8 +28,8 @@ _WHERE = {
     "Candidate": "naming",
     "DiagnoseError": "naming",
     "Diagnosis": "discrepancy",
-    "FitError": "fit",
-    "FitResult": "fit",
+    "FitError": "problem",
+    "FitResult": "fitresult",
     "MeasurementError": "measurement",
     "PeriodicityTest": "fit",
     "SampleError": "sample",

@@ -8,7 +8,7 @@ slope, a balance mass moved) sees the same causes along other directions. This m
 before anyone films it, how far apart a set of walks analysed jointly would bring them.
 
 **Method** (linear least squares about the base fit, the score tests' first order:
-:func:`toywalk.sysid.fit.score_tests`). For each walk, the base model is fitted and the whitened
+:func:`toywalk.sysid.score.score_tests`). For each walk, the base model is fitted and the whitened
 residuals' Jacobian taken through the BVP in the free parameters, every candidate and the walk's
 nuisances (:func:`walk_columns`). The walks' Jacobians are stacked: a shared unknown's column (the
 free parameters and the candidates: properties of the walker) is the walks' columns one above the
@@ -42,7 +42,7 @@ from toywalk.model.walker import STATE_NAMES
 from .fit import FitError, FitResult, fit, held_jacobian
 from .heldout import FitPool, run_fits
 from .naming import ALPHA, SEPARATION, Candidate, lr_p_value
-from .walks import stacked
+from .problem import stacked
 
 __all__ = ["CONDITIONS", "Condition", "DesignError", "WalkColumns", "next_walk", "separation",
            "walk_columns"]

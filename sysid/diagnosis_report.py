@@ -18,9 +18,8 @@ import math
 from pathlib import Path
 
 import numpy as np
-from toywalk.model.files import atomic_write_json, atomic_write_text, strict_json
+from toywalk.model.files import atomic_write_figure, atomic_write_json, atomic_write_text, strict_json
 
-from .diagnostics import _save
 from .discrepancy import Diagnosis
 from .naming import SEPARATION, percent
 
@@ -49,7 +48,7 @@ def _write_report(folder: Path, diagnosis, inputs: dict | None, markdown: str, f
 
 def _finish(fig, path: Path) -> Path:
     fig.tight_layout()
-    _save(fig, path)
+    atomic_write_figure(path, fig)
     return path
 
 

@@ -12,7 +12,7 @@ The procedure, and the rule that decides (``alpha`` is the family-wise false-ala
    (:mod:`toywalk.sysid.residuals`): a pattern repeated every step, whiteness, gait features.
 2. **Screening by score tests** of every candidate at the base fit (Rao 1948: the gradient of
    chi-square in the held parameter, projected off the fitted ones; no refit, one Jacobian per
-   candidate: :func:`toywalk.sysid.fit.score_tests`). A candidate whose base value sits on a
+   candidate: :func:`toywalk.sysid.score.score_tests`). A candidate whose base value sits on a
    physical bound (a damper at zero) is tested one-sided.
 3. **Adequate** when no candidate's score p-value is below ``alpha / K`` (K candidates,
    Bonferroni) and no signal shows a repeated pattern at ``alpha``.
@@ -50,7 +50,7 @@ from scipy import special
 from toywalk.model.parameters import Params
 from toywalk.model.trajectory import TrajectoryTable
 
-from .fit import FitError, FitResult, fit, gait_period, periodicity_test, score_tests
+from .fit import FitResult, fit, gait_period, periodicity_test, score_tests
 from .heldout import FitPool, held_out, held_out_fits, held_out_score, held_out_tasks, run_fits
 from .measurement import observations
 from .missing_force import MissingForce, discover, missing_force_clause
@@ -84,11 +84,11 @@ from .residuals import (
     residual_report,
     scatter_noise,
 )
+from .ties import further_walk_clause, weigh_ties
 
 __all__ = ["ALPHA", "MAX_EXTENDED", "PARAMETERS", "SEPARATION", "Candidate", "Diagnosis",
            "DiagnoseError", "FitPool", "Verdict", "candidates", "chosen_model", "complete_rows", "diagnose",
-           "held_out", "held_out_fits", "held_out_score", "held_out_tasks", "lr_p_value", "run_fits", "tied",
-           "weigh_ties"]
+           "held_out", "held_out_fits", "held_out_score", "held_out_tasks", "lr_p_value", "run_fits", "tied"]
 
 #: IPOPT's iteration cap for a candidate's fit from the base fit: a candidate that does not
 #: converge from there in this many is not an explanation of the walk (measured: the hidden
@@ -445,7 +445,7 @@ def _diagnose(table: TrajectoryTable, params: Params, *, free, effects, paramete
         further = weigh_ties([table], [base], cands, close, pool=pool, alpha=alpha, say=say,
                              **fit_options)
         seconds["next_walk"] = time.perf_counter() - lap
-        evidence += _further_evidence(further)
+        evidence += further_walk_clause(further)
     found = None
     if missing_force and decision.cause == "unexplained":
         lap = time.perf_counter()
@@ -459,36 +459,6 @@ def _diagnose(table: TrajectoryTable, params: Params, *, free, effects, paramete
                      base, extended, res_base, res_ext, features, features_ext, RULE, alpha,
                      dict(seconds, total=time.perf_counter() - clock), further, found,
                      effective=decision.explanation.to_json() if decision.explanation else None)
-
-
-def weigh_ties(tables: list, bases: list, cands: list, close: list[dict], *, pool: FitPool,
-               alpha: float, say, **fit_options) -> dict:
-    """Which further walk would tell apart the candidates ``close`` (:func:`tied`) left by the
-    analysis of ``tables`` with base fits ``bases``: each hidden at its fitted change from its
-    base value (:func:`toywalk.sysid.design.next_walk`); ``tied`` and ``reason`` where the walks
-    cannot be weighed."""
-    from .design import DesignError, next_walk  # the design builds on this module's rule
-
-    say(f"which further walk would tell apart {' and '.join(r['effect'] for r in close)}")
-    by_name = {c.name: c for c in cands}
-    hidden = {r["effect"]: r["estimate"][r["effect"]] - by_name[r["effect"]].base for r in close}
-    try:
-        return next_walk(tables, bases, cands, hidden, pool=pool, alpha=alpha, **fit_options)
-    except (DesignError, FitError) as err:
-        return {"tied": list(hidden), "reason": str(err)}
-
-
-def _further_evidence(further: dict) -> str:
-    """The evidence's clause on the further walk that would break a tie (:func:`_diagnose`)."""
-    if "reason" in further:
-        return f"; which further walk would tell them apart could not be weighed ({further['reason']})"
-    if further["suggestion"] is None:
-        return ("; no further walk weighed (a steeper or flatter ramp, the masses moved) would tell "
-                "them apart")
-    row = next(r for r in further["conditions"] if r["label"] == further["suggestion"])
-    return (f"; a further walk with {row['label']} would tell them apart (first order: "
-            f"{row['gap']:.0f} in chi-square, named in {100 * row['named_rate']:.0f} % of noise draws; "
-            f"the same walk again: {further['same_again']['gap']:.1f})")
 
 
 def _base_fit(table, params: Params, free, options: dict, say,

@@ -37,8 +37,8 @@ from toywalk.model.gait import GaitNotFound, solve_fixed_point
 from toywalk.model.parameters import ParameterError, Params
 from toywalk.model.walker import Walker
 
-from .fit import with_values
 from .measurement import Observations, components, offsets_design, path, shutter_reads, step_counts
+from .problem import with_values
 
 __all__ = ["NO_GAIT", "OK", "OUTSIDE_PRIOR", "GaitCurves", "LogPosterior", "Reading", "model_angles"]
 

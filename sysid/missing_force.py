@@ -8,7 +8,7 @@ transient model, heel strikes and rolling constraints and all), not by regressio
 of noisy angles:
 
 1. At the current model (the base at first), every term of the dictionary not yet in it is
-   screened by its score test (:func:`toywalk.sysid.fit.score_tests`: the first-order
+   screened by its score test (:func:`toywalk.sysid.score.score_tests`: the first-order
    likelihood ratio of freeing it, without a fit), and the :data:`FITTED` best are fitted, each
    added to the current model.
 2. The best of them by likelihood ratio is taken when the ratio is significant at ``alpha`` over
@@ -33,9 +33,11 @@ import math
 
 from toywalk.model.effects import PORTS
 
-from .fit import FitResult, gait_period, score_tests
+from .fitresult import FitResult
 from .heldout import FitPool, held_out_fits, held_out_score, held_out_tasks, run_fits
 from .naming import SEPARATION, DiagnoseError, candidates, lr_p_value
+from .problem import gait_period
+from .score import score_tests
 
 __all__ = ["FITTED", "MAX_TERMS", "RULE", "MissingForce", "discover", "missing_force_clause",
            "term_sentence"]

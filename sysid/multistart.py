@@ -21,7 +21,7 @@ time ``sqrt(l / g)``, as in Garcia et al. 1998, J. Biomech. Eng. 120:281):
   alone: the user's value is kept, and the run says so.
 
 Everything that is not free stays the user's. Each start is clipped into the parameter's physical
-bounds (:func:`toywalk.sysid.fit.fit_bounds`, and the foot radii kept in order as the fit
+bounds (:func:`toywalk.sysid.problem.fit_bounds`, and the foot radii kept in order as the fit
 keeps them), and starts equal within :data:`DUPLICATE_RTOL` are fitted once, with every set
 they came from named.
 

@@ -40,7 +40,7 @@ from scipy import special
 from toywalk.model.effects import EFFECTS, LIBRARY
 from toywalk.model.parameters import Params
 
-from .fit import fit_bounds
+from .problem import fit_bounds
 from .residuals import scatter_noise
 
 __all__ = ["ALPHA", "MAX_EXTENDED", "NOISE_GROUPS", "NOISE_WHITENESS", "PARAMETERS", "RMS_FACTOR",

@@ -164,7 +164,7 @@ def shared_errors(obs: Observations, bins: int | None = None) -> sp.csr_matrix:
     ``L @ L.T`` with one standard normal per cell. A tracker's bias by phase (what its
     calibration leaves uncertain, tracking/accuracy_phase.py) repeats in every step of a foot,
     so averaging more steps does not shrink it; an estimate that leans on that phase carries it
-    whole (:meth:`toywalk.sysid.fit.FitResult` standard errors). Empty columns where the file
+    whole (:meth:`toywalk.sysid.fitresult.FitResult` standard errors). Empty columns where the file
     gives no ``*_phase_sd``."""
     bins = phase_bins(obs) if bins is None else int(bins)
     b = np.minimum((obs.phase * bins).astype(int), bins - 1)

@@ -35,10 +35,10 @@ from toywalk.model.parameters import Params
 from toywalk.model.trajectory import SIGNALS, TrajectoryTable
 from toywalk.model.walker import STATE_NAMES
 
-from .fit import CONTACT_KEYS, gait_period, parameter_bounds
 from .likelihood import NO_GAIT, OK, OUTSIDE_PRIOR, LogPosterior
 from .measurement import observations
 from .measurement import path as contact_path
+from .problem import CONTACT_KEYS, gait_period, parameter_bounds
 
 __all__ = ["SampleError", "SampleSummary", "diagnose_chains", "posterior_from_fit", "sample", "worker_pool"]
 

@@ -67,12 +67,11 @@ import numpy as np
 from scipy import special
 from toywalk.model.continuation import continue_branch
 from toywalk.model.gait import Gait, GaitNotFound, find_gait, solve_fixed_point
-from toywalk.model.optimize import FitResult, fit_gait_targets, gait_features
+from toywalk.model.optimize import GaitTargetFit, fit_gait_targets, gait_features
 from toywalk.model.parameters import PARAMETER_NAMES, ParameterError, Params
 from toywalk.model.statics import can_stand
 from toywalk.model.walker import Walker
 
-from .fit import fit_bounds
 from .naming import (
     ALPHA,
     SEPARATION,
@@ -85,6 +84,7 @@ from .naming import (
     lr_p_value,
     rule_text,
 )
+from .problem import fit_bounds
 
 __all__ = ["LENGTH_REACH", "NOT_VISIBLE", "PAIR_MEMBERS", "PARALLEL", "PHYSICAL", "SCAN_POINTS",
            "TARGETS", "SummaryData",
@@ -361,7 +361,7 @@ def fit_summary(gait: Gait, data: SummaryData, free: Sequence[str], bounds: dict
     names = tuple(free)
     priors = {k: v for k, v in data.priors.items() if k in names}
     bounds = {n: bounds[n] for n in names}
-    result: FitResult = fit_gait_targets(gait, names, bounds, data.targets, max_nfev=_MAX_EVALUATIONS,
+    result: GaitTargetFit = fit_gait_targets(gait, names, bounds, data.targets, max_nfev=_MAX_EVALUATIONS,
                                          continuation=False, priors=priors)
     estimates = {n: float(result.params.get(n)) for n in names}
     jac = result.jacobian

@@ -22,7 +22,7 @@ single fits of two walks that it fits nearly as well that way, and the joint pro
 did not converge.) The noise of each walk is its file's SDs, the given ``noise_sd``, or its
 samples' own scatter: never a residual RMS, which a base model's misfit inflates. The covariance of
 the shared changes is the inverse information of the walks' Jacobians stacked: shared columns one
-above the other, each walk's nuisances in its own rows (:meth:`_Problem.jacobian`).
+above the other, each walk's nuisances in its own rows (:meth:`toywalk.sysid.problem.FitProblem.jacobian`).
 """
 
 from __future__ import annotations
@@ -37,20 +37,8 @@ import numpy as np
 from toywalk.model.parameters import Params
 from toywalk.model.trajectory import SIGNALS, TrajectoryTable
 
-from .discrepancy import EXPLAINS, _further_evidence, chosen_model, weigh_ties
-from .fit import (
-    _STAGE_PATH,
-    CONTACT_KEYS,
-    FitError,
-    FitResult,
-    _contact_sigma,
-    _continued,
-    _ipopt_options,
-    _setup,
-    _sigma_from,
-    held_jacobian,
-    score_statistics,
-)
+from .discrepancy import EXPLAINS, chosen_model
+from .fitresult import FitResult
 from .heldout import FitPool, held_out_fits, held_out_score, masked, run_fits, strides
 from .measurement import observations
 from .naming import (
@@ -71,7 +59,20 @@ from .naming import (
     tied,
     white_components,
 )
+from .problem import (
+    CONTACT_KEYS,
+    STAGE_PATH,
+    FitError,
+    contact_sigma,
+    continued,
+    ipopt_options,
+    setup,
+    sigma_from,
+    stacked,
+)
 from .residuals import ResidualReport, feature_misfit, missed_features, residual_report, scatter_noise
+from .score import held_jacobian, score_statistics
+from .ties import further_walk_clause, weigh_ties
 
 __all__ = ["WALKS_RULE", "WalksDiagnosis", "WalksFit", "diagnose_walks", "fit_walks", "held_out_walks",
            "stacked", "without_unweighed_contacts"]
@@ -121,22 +122,9 @@ class WalksFit:
         return (self.estimates[name] - z * self.std[name], self.estimates[name] + z * self.std[name])
 
 
-def stacked(shared: Sequence[np.ndarray], nuisance: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-    """Several walks' Jacobian columns as one problem's: the shared unknowns' columns (each walk's
-    shape (n_k, s)) one above the other, the nuisances' (n_k, m_k) block-diagonal, each in its
-    walk's rows. Returns the shared (sum n_k, s) and nuisance (sum n_k, sum m_k) columns."""
-    rows = sum(len(a) for a in shared)
-    block = np.zeros((rows, sum(b.shape[1] for b in nuisance)))
-    r = c = 0
-    for a, b in zip(shared, nuisance, strict=True):
-        block[r:r + len(a), c:c + b.shape[1]] = b
-        r, c = r + len(a), c + b.shape[1]
-    return np.vstack(shared), block
-
-
 def without_unweighed_contacts(table: TrajectoryTable, noise_sd: dict | None = None) -> TrajectoryTable:
     """``table`` without its heel strikes' contact positions when they have no SDs (the events
-    file's ``x_sd, y_sd``) and ``noise_sd`` gives none (:data:`toywalk.sysid.fit.CONTACT_KEYS`):
+    file's ``x_sd, y_sd``) and ``noise_sd`` gives none (:data:`toywalk.sysid.problem.CONTACT_KEYS`):
     their noise would have to come from the residuals, which a base model's misfit inflates
     (a simulation's contacts are exact). Otherwise ``table`` itself."""
     located = [e for e in table.events
@@ -191,10 +179,10 @@ def fit_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], free,
     problems, starts, sigmas, sources = [], [], [], []
     tables = [without_unweighed_contacts(t, noise_sd) for t in tables]
     for k, (table, walker) in enumerate(zip(tables, params, strict=True)):
-        setup = {"model": model, "offsets": offsets, "n_intervals": None, "degree": None,
+        walk_setup = {"model": model, "offsets": offsets, "n_intervals": None, "degree": None,
                  "max_iter": max_iter, "check_jacobian": False, "priors": {}, "strikes": strikes}
         try:
-            problem, w0 = _setup(table, walker, free, z_guess=None, **setup)
+            problem, w0 = setup(table, walker, free, z_guess=None, **walk_setup)
         except FitError:
             # The walker's gait under this walk's condition, from the last walk's: its own search
             # from the planar reduction can stall where Newton from a nearby condition's gait
@@ -204,10 +192,10 @@ def fit_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], free,
             last = problems[-1]
             z_last = last.walker.to_public(np.r_[starts[-1][1:1 + last.prob.n_dyn],
                                                  np.zeros(last.walker.lay.nx - last.prob.n_dyn)])
-            problem, w0 = _setup(table, walker, free, z_guess=z_last, **setup)
+            problem, w0 = setup(table, walker, free, z_guess=z_last, **walk_setup)
         obs = problem.obs
         if noise_sd is not None:
-            sigma, source = _sigma_from(noise_sd, obs), "given"
+            sigma, source = sigma_from(noise_sd, obs), "given"
         elif obs.sd_known:
             sigma, source = obs.sd.copy(), "file"
         else:
@@ -215,12 +203,12 @@ def fit_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], free,
             if not all(math.isfinite(v) and v > 0 for v in scatter.values()):
                 raise FitError(f"walk {k + 1}: too few samples within its steps to measure its noise; "
                                "give noise_sd")
-            sigma, source = _sigma_from(scatter, obs), "scatter within steps"
-        sigma_c, source_c = _contact_sigma(problem.path, noise_sd)
+            sigma, source = sigma_from(scatter, obs), "scatter within steps"
+        sigma_c, source_c = contact_sigma(problem.path, noise_sd)
         x = problem.start(w0)
         if warm is not None:
             done = warm.walks[k]
-            x = _continued(problem, w0, done)
+            x = continued(problem, w0, done)
             n_w = problem.n_w
             for j, name in enumerate(free):
                 if name in done.estimates:
@@ -250,12 +238,12 @@ def fit_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], free,
             lbg.append([0.0])
             ubg.append([0.0])
     solver = ca.nlpsol("walks", "ipopt", {"x": xs, "p": ps, "f": f, "g": ca.vertcat(*gs)},
-                       _ipopt_options(max_iter))
+                       ipopt_options(max_iter))
     lbx, ubx = np.concatenate([pr.lbx for pr in problems]), np.concatenate([pr.ubx for pr in problems])
     lbg, ubg = np.concatenate(lbg), np.concatenate(ubg)
     # As each walk's fit: first aligned on the measured strikes (clocks held), then, where the
     # fit reads the walk between the model's strikes, on those from there: in one jump, and
-    # through the blends of fit._STAGE_PATH where the jump fails or ends far above the aligned
+    # through the blends of problem.STAGE_PATH where the jump fails or ends far above the aligned
     # solution (_JUMP_LIMIT); the better of the two. From a warm start the last stage only.
     def solve(x0: np.ndarray, stage: float):
         p_value = np.concatenate([np.r_[1.0 / sg, stage] for sg in sigmas])
@@ -276,7 +264,7 @@ def fit_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], free,
             x_all, f_jump, stats = solve(aligned, 1.0)
             if not stats["success"] or f_jump > _JUMP_LIMIT * f_aligned:
                 x_path, f_path, s_path = aligned, math.inf, stats
-                for stage in _STAGE_PATH:
+                for stage in STAGE_PATH:
                     x_path, f_path, s_path = solve(x_path, stage)
                     if not s_path["success"]:
                         break
@@ -367,7 +355,7 @@ class WalksDiagnosis(Verdict):
 
 
 #: A joint fit's jump from the measured strikes to the model's is redone through the blends of
-#: fit._STAGE_PATH where it ends above this many times the aligned solution's misfit. Both read
+#: problem.STAGE_PATH where it ends above this many times the aligned solution's misfit. Both read
 #: the same samples with the same model, the clock aligned on other strikes; a jump far above
 #: went into another minimum (two walks of compass-3d on slopes 0.03 and 0.024, hip damping
 #: hidden: 342 times, the lateral offset 0.179 m for 0.02; through the path 8113 in chi-square:
@@ -507,7 +495,7 @@ def diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params], 
        ways (measured: IPOPT's restoration failed, stable toy, hip dry friction hidden in three
        walks); each candidate's fit is then also the start of a base fit with that candidate
        held at its null value, and the lowest converged chi-square is the base's.
-    2. Screening by score tests (:func:`toywalk.sysid.fit.held_jacobian` of each walk at the base
+    2. Screening by score tests (:func:`toywalk.sysid.score.held_jacobian` of each walk at the base
        fit, stacked as in :func:`stacked`) when the base converged; every candidate is fitted
        when it did not.
     3. The best :data:`toywalk.sysid.discrepancy.MAX_EXTENDED` fitted (all walks together), each
@@ -682,7 +670,7 @@ def _diagnose_walks(tables: Sequence[TrajectoryTable], params: Sequence[Params],
         if close:
             further = weigh_ties(tables, base.walks, cands, close, pool=pool, alpha=alpha, say=say,
                                  **fit_options)
-            evidence += _further_evidence(further)
+            evidence += further_walk_clause(further)
     note = _pattern_note(patterns)
     if note:
         evidence += f"; the base model leaves a pattern repeated every step ({note})"

@@ -35,7 +35,7 @@ import sys
 from pathlib import Path
 from toywalk.model.files import DATA_DIR as _DATA
 from toywalk.sysid.cli import main
-import toywalk.sysid.cmd_demo
+import toywalk.sysid.commands.demo
 import toywalk.model.effects, toywalk.tracking.calibrate
 site = Path(sys.argv[1]).resolve()
 assert _DATA.is_relative_to(site), _DATA

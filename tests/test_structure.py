@@ -36,39 +36,10 @@ PACKAGES = {"model": "toywalk.model", "tracking": "toywalk.tracking", "sysid": "
 KNOWN_CYCLES: dict[tuple[str, ...], str] = {}
 
 #: Imports inside a function that close a cycle today: (importing module, imported module).
-KNOWN_DEFERRED_CYCLES = {
-    # the cycle model: collocation, compiled, engine, gait, walker
-    ("toywalk.model.compiled", "toywalk.model.collocation"):
-        "to be removed: the list of compiled libraries and their builders move to a prebuild module "
-        "that imports engine and collocation, so that compiled.py imports neither",
-    ("toywalk.model.compiled", "toywalk.model.engine"):
-        "to be removed: as for collocation, by the same prebuild module",
-    # the cycle sysid: design, discrepancy, walks
-    ("toywalk.sysid.discrepancy", "toywalk.sysid.design"):
-        "to be removed: weigh_ties moves out of discrepancy.py to a module that builds on both, so "
-        "that the one-walk analysis does not import the design built on its rule",
-}
+KNOWN_DEFERRED_CYCLES: dict[tuple[str, str], str] = {}
 
-_WALKS_FIT = ("to be removed: what the several-walk fit shares with fit() becomes fit.py's public, "
-              "documented interface (or a module of its own that both import)")
-_WALKS_DISCREPANCY = ("to be removed: what the several-walk diagnosis shares with the one-walk "
-                      "analysis becomes discrepancy.py's public, documented interface")
 #: Private names imported from another module today: (importing module, defining module, name).
-KNOWN_PRIVATE_IMPORTS = {
-    ("toywalk.sysid.walks", "toywalk.sysid.fit", "_setup"): _WALKS_FIT,
-    ("toywalk.sysid.walks", "toywalk.sysid.fit", "_continued"): _WALKS_FIT,
-    ("toywalk.sysid.walks", "toywalk.sysid.fit", "_ipopt_options"): _WALKS_FIT,
-    ("toywalk.sysid.walks", "toywalk.sysid.fit", "_STAGE_PATH"): _WALKS_FIT,
-    ("toywalk.sysid.walks", "toywalk.sysid.fit", "_contact_sigma"): _WALKS_FIT,
-    ("toywalk.sysid.walks", "toywalk.sysid.fit", "_sigma_from"): _WALKS_FIT,
-    ("toywalk.sysid.walks", "toywalk.sysid.discrepancy", "_further_evidence"): _WALKS_DISCREPANCY,
-    ("toywalk.sysid.fit", "toywalk.model.gait", "_lateral_singular"):
-        "to be removed: the check that the 3D mass matrix is singular upright becomes public in "
-        "model/gait.py (the fit asks it of the walker it is given)",
-    ("toywalk.sysid.diagnosis_report", "toywalk.sysid.diagnostics", "_save"):
-        "to be removed: one public function writes a figure atomically (beside the atomic JSON "
-        "and text writers of model/files.py), imported by both",
-}
+KNOWN_PRIVATE_IMPORTS: dict[tuple[str, str, str], str] = {}
 
 
 # ------------------------------------------------------------------------------ reading the source

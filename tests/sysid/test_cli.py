@@ -186,7 +186,7 @@ def test_continuation_plot_prints_plain_numbers(tmp_path, monkeypatch):
 
     import matplotlib.figure
     import numpy as np
-    from toywalk.sysid.cli import _plot_branch
+    from toywalk.sysid.commands.gait import _plot_branch
 
     seen = {}
 

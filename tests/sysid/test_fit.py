@@ -230,7 +230,7 @@ def test_a_prior_on_the_slope_combines_with_the_data(toy):
 
 def test_foot_radii_stay_ordered():
     """A spherical foot (compass-3d: rho = r) stays a sphere when its radius alone is free: both
-    radii move together (sysid.fit.tied), the estimate recovers the truth, and the reduced
+    radii move together (sysid.problem.tied), the estimate recovers the truth, and the reduced
     Jacobian through the tie agrees with re-solved differences. A torus foot's fore-aft radius
     freed alone is bounded below by the fixed sideways one; freeing both keeps rho <= r (a
     constraint). Either way the fitted walker is valid, and a failed fit is refused by the

@@ -1,5 +1,5 @@
 """Errors shared by phase (a tracker's bias that repeats in every step) in the fit's standard
-errors: the sandwich covariance of :func:`toywalk.sysid.fit.shared_covariance` against the spread
+errors: the sandwich covariance of :func:`toywalk.sysid.problem.shared_covariance` against the spread
 of least-squares estimates over draws of such errors, the cells of
 :func:`toywalk.sysid.residuals.shared_errors`, and a fit of a file with ``*_phase_sd`` columns.
 

@@ -176,7 +176,7 @@ def test_no_causes_asked_for_leaves_only_the_missing_forces_search(tmp_path):
     """``--effects none --parameters none``: no candidate, which only the search of the port
     dictionary can use; without it, and in the analyses of several walks, a one-line refusal
     before any fit. Causes asked for that are all free still refuse as before."""
-    from toywalk.sysid.cmd_diagnose import _split
+    from toywalk.sysid.commands.diagnose import _split
     from toywalk.sysid.discrepancy import diagnose
     from toywalk.sysid.naming import DiagnoseError
     from toywalk.sysid.walks import diagnose_walks

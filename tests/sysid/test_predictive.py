@@ -1,8 +1,8 @@
-"""Posterior predictive checks (sysid.diagnostics.predictive_checks) on a model whose truth is
+"""Posterior predictive checks (sysid.sample_report.predictive_checks) on a model whose truth is
 known: a walk the model can produce passes them, one with a pattern the model lacks fails them."""
 
 import numpy as np
-from toywalk.sysid.diagnostics import CHECKED_FEATURES, MISFIT_SDS, misfit_notes, predictive_checks
+from toywalk.sysid.sample_report import CHECKED_FEATURES, MISFIT_SDS, misfit_notes, predictive_checks
 
 from .builders import grid_observations, walk_signals
 

@@ -278,6 +278,6 @@ def test_the_commands_do_not_load_scipy_stats():
     """Every toywalk command would pay scipy.stats' import (about a second) for a handful of
     tail probabilities that scipy.special gives: the analysis and tracking modules do without."""
     code = ("import toywalk.sysid.cli, toywalk.sysid.fit, toywalk.sysid.discrepancy, "
-            "toywalk.sysid.summary, toywalk.sysid.walks, toywalk.sysid.cmd_diagnose, "
-            "toywalk.sysid.cmd_fit, toywalk.tracking.track")
+            "toywalk.sysid.summary, toywalk.sysid.walks, toywalk.sysid.commands.diagnose, "
+            "toywalk.sysid.commands.fit, toywalk.tracking.track")
     assert loaded_by(code, "scipy.stats") == {"scipy.stats": False}

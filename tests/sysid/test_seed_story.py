@@ -18,7 +18,7 @@ def test_the_seeds_story_a_point_foot_model_of_a_round_footed_walker():
     free, and, as a newcomer would, no noise SD: the base model's residual RMS is mostly misfit
     (11 to 64 times the samples' scatter), so the noise is the scatter. The foot radius is named,
     and with it the model fits and predicts the walker stable. A point foot's radius, freed, is a
-    sphere's (sysid.fit.tied). With the residual RMS as the noise, the same walk gave
+    sphere's (sysid.problem.tied). With the residual RMS as the noise, the same walk gave
     `unexplained` (a fore-aft mass offset fitted, leaving a repeated pattern)."""
     truth = load_params(DATA / "params" / "clearing-toy.toml")
     base = truth.replace(foot_radius=0.0, foot_lateral_radius=0.0)

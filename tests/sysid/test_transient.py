@@ -177,18 +177,18 @@ def test_the_jacobian_check_re_solves_by_newton_where_ipopt_stops(toy, monkeypat
     at 120 frames/s, by default, warned that the check could not be made), Newton on the BVP's
     equalities re-solves it, and the check agrees with the one IPOPT's re-solves give (both
     measured 2e-9 to 3e-8 relative, against 1e-6)."""
-    import toywalk.sysid.fit as fitting
+    import toywalk.sysid.problem as fit_problem
 
     truth = toy.replace(**{"effects.impact_trailing_share": 0.1})
     table, _ = _released(truth, 6, 0.002, 1)  # 6 steps: the check is as good, the fits quicker
     by_ipopt = fit(table, truth, RECOVERED, model="transient")
-    result = fitting._Problem.result
+    result = fit_problem.FitProblem.result
 
     def without_ipopt(self, *args, **kwargs):
         self.prob = _IpoptStops(self.prob)
         return result(self, *args, **kwargs)
 
-    monkeypatch.setattr(fitting._Problem, "result", without_ipopt)
+    monkeypatch.setattr(fit_problem.FitProblem, "result", without_ipopt)
     by_newton = fit(table, truth, RECOVERED, model="transient")
     assert set(by_newton.jacobian_check) == set(RECOVERED) and not by_newton.warnings
     assert max(by_newton.jacobian_check.values()) < 1e-6, by_newton.jacobian_check
@@ -200,10 +200,10 @@ def test_the_jacobian_check_re_solves_by_newton_where_ipopt_stops(toy, monkeypat
 def _transient_problem(params, steps):
     """The transient fit's NLP of a released walk of ``steps`` steps, on the model's strikes, at
     its start (a time offset of 2 ms, so that the clock's path through the offset is seen)."""
-    from toywalk.sysid.fit import _setup
+    from toywalk.sysid.problem import setup
 
     table, _ = _released(params, steps, 0.002, 1)
-    problem, w0 = _setup(table, params, ["foot_radius"], model="transient", offsets=True,
+    problem, w0 = setup(table, params, ["foot_radius"], model="transient", offsets=True,
                          n_intervals=None, degree=None, z_guess=None, max_iter=500,
                          check_jacobian=False, priors={}, strikes="model")
     x = problem.start(w0)
@@ -265,7 +265,7 @@ def test_the_checks_re_solve_lands_on_the_root_and_keeps_ipopts_where_newton_fai
     the equalities past its tolerance (IPOPT's unknowns stand off the root along ill-conditioned
     directions; a central difference divides that by its step). Where those Newton steps go
     wrong, IPOPT's solution, within the tolerance, stands rather than none."""
-    import toywalk.sysid.fit as fitting
+    import toywalk.sysid.problem as fitting
 
     problem, x = _transient_problem(toy, 6)
     problem.jacobian(x, np.full(problem.n_obs, 0.002))  # sets the free start the re-solve holds

@@ -53,19 +53,19 @@ def test_one_walk_is_the_single_fit_and_a_walk_twice_halves_the_variance(toy):
 def test_a_walk_whose_gait_search_fails_starts_from_the_last_walks_gait(toy, monkeypatch):
     """When the gait search from scratch fails for a later walk's condition, its gait is solved
     from the last walk's: the joint fit is the one made without the failure."""
-    import toywalk.sysid.fit as fit_module
+    import toywalk.sysid.problem as problem_module
 
     flatter = toy.replace(slope=0.95 * toy.slope)
     tables = [simulated_walk(p, 6, 0.002, 11 + k)[0] for k, p in enumerate((toy, flatter))]
     plain = fit_walks(tables, [toy, flatter], FREE, noise_sd=NOISE)
-    search = fit_module.find_gait
+    search = problem_module.find_gait
 
     def failing(params, *args, **kwargs):
         if params.slope != toy.slope:
             raise GaitNotFound("continuation stalled (a test's failure)")
         return search(params, *args, **kwargs)
 
-    monkeypatch.setattr(fit_module, "find_gait", failing)
+    monkeypatch.setattr(problem_module, "find_gait", failing)
     with pytest.raises(FitError, match="no gait"):
         fit(tables[1], flatter, FREE, noise_sd=NOISE)  # the failure is real for a single fit
     fallback = fit_walks(tables, [toy, flatter], FREE, noise_sd=NOISE)
@@ -94,7 +94,7 @@ def _two_slopes():
 def test_walks_on_two_slopes_reach_the_model_strikes_through_the_stage_path():
     """Where the joint fit's jump from the measured strikes to the model's ends far above the
     aligned misfit (walks._JUMP_LIMIT), it goes again through the single fit's blends
-    (fit._STAGE_PATH). compass-3d with hip damping hidden (0.002 N m s/rad), 16 steps on
+    (problem.STAGE_PATH). compass-3d with hip damping hidden (0.002 N m s/rad), 16 steps on
     its slope and on 0.8 of it (`toywalk simulate --noise 0.002`, seeds 31 and 32): in one jump
     the base fit ended at chi-square 3.2e6 on 5362 residuals with the lateral offset at 0.179 m
     (truth 0.02); through the path at 8113, the offset 0.0172 (the fit's other free parameter, the

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from toywalk.model.parameters import save_params
 from toywalk.model.trajectory import TrajectoryTable, write_trajectory
-from toywalk.sysid.cmd_render import out_of_view_warning
+from toywalk.sysid.commands.render import out_of_view_warning
 from toywalk.tracking.camera import load_camera, project, save_camera
 from toywalk.tracking.detect import MarkerDetector
 from toywalk.tracking.markers import body_points, default_layout, load_layout, marker_corners

@@ -29,6 +29,8 @@ from pathlib import Path
 from toywalk.model.files import DATA_DIR as _DATA
 from toywalk.model.files import software_version, strict_json
 
+from .common import CommandError, output_path, refuse_overwrite
+
 __all__ = ["cmd_track", "register"]
 
 
@@ -66,7 +68,6 @@ def register(subparsers) -> None:
 
 def _exposure(text: str | None) -> float | None:
     """``--exposure``: seconds, written as a number or as the fraction a camera shows (1/150)."""
-    from toywalk.sysid.cli import CommandError
 
     if text is None:
         return None
@@ -120,7 +121,6 @@ def _default(given, kind: str, name: str) -> Path:
     if given is not None:
         return Path(given)
     path = _DATA / kind / name
-    from toywalk.sysid.cli import CommandError
 
     if not path.exists():
         raise CommandError(f"no --{'camera' if kind == 'camera' else 'markers'} given and the bundled "
@@ -147,7 +147,6 @@ def _bundled_lens(camera, video: Path):
     size where that differs with the same aspect ratio (``render --size`` films with that lens
     so; a phone's video modes are, to the calibration's accuracy, only where the mode does not
     crop)."""
-    from toywalk.sysid.cli import CommandError
     from toywalk.tracking.camera import CameraError
     from toywalk.tracking.video import declared_size
 
@@ -172,7 +171,6 @@ def _phase_errors(path, video: Path):
     is refused: the tracker's errors by phase depend on the frames a step has."""
     if path is None:
         return None
-    from toywalk.sysid.cli import CommandError
     from toywalk.tracking.accuracy_phase import AccuracyError, load_phase_errors
     from toywalk.tracking.video import declared_fps
 
@@ -189,7 +187,6 @@ def _phase_errors(path, video: Path):
 
 def cmd_track(args) -> int:
     from toywalk.model.trajectory import trajectory_paths, write_trajectory
-    from toywalk.sysid.cli import CommandError, output_path, refuse_overwrite
     from toywalk.tracking.camera import CameraError, load_camera
     from toywalk.tracking.events import legs_passing
     from toywalk.tracking.markers import LayoutError, load_layout
@@ -305,7 +302,7 @@ def cmd_track(args) -> int:
           + (f"exposure {_seconds(exposure)} ({exposure_from})" if exposure is not None else
              "exposure not stated, each frame read at its time (--exposure)") + f" -> {out}")
     if phase_errors is not None:
-        from toywalk.sysid.cmd_accuracy import describe_phase_errors
+        from .accuracy import describe_phase_errors
 
         print(f"tracker errors carried from {args.accuracy}: {describe_phase_errors(phase_errors)}")
     passings = legs_passing(result.raw["pitch_left"], result.raw["pitch_right"])

@@ -1,4 +1,6 @@
-"""Figures and a summary page of a sampling run (``toywalk sample --report DIR``).
+"""Figures and a summary page of a sampling run (``toywalk sample --report DIR``), and the
+posterior predictive checks they show: the sampler's report, as :mod:`toywalk.sysid.diagnosis_report`
+is the diagnosis's.
 
 Trace plots (every walker of every ensemble), a corner plot of the kept draws (after burn-in,
 thinned by half an autocorrelation time; ``corner``), the posterior of the gait's max |eigenvalue|
@@ -12,11 +14,10 @@ written under a temporary name and renamed into place.
 from __future__ import annotations
 
 import math
-import os
 from pathlib import Path
 
 import numpy as np
-from toywalk.model.files import atomic_write_json, atomic_write_text
+from toywalk.model.files import atomic_write_figure, atomic_write_json, atomic_write_text
 
 __all__ = ["CHECKED_FEATURES", "MISFIT_SDS", "PREDICTIVE_DRAWS", "misfit_notes", "predictive_checks",
            "write_report"]
@@ -30,15 +31,6 @@ def _chains(path: Path, ensembles: int):
         b = emcee.backends.HDFBackend(str(path), name=f"ensemble_{e}", read_only=True)
         out.append((b.get_chain(), b.get_blobs()))
     return out
-
-
-def _save(fig, path: Path) -> None:
-    tmp = path.with_name(f".{path.name}.tmp.png")
-    try:
-        fig.savefig(tmp, dpi=110)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
 
 
 #: Posterior draws behind the predictive bands and checks (a p-value is then known to 1/40).
@@ -185,7 +177,7 @@ def _checks_figure(result: dict, path: Path) -> None:
         ax.set_visible(False)
     fig.suptitle(f"Posterior predictive checks ({result['draws']} draws; red: measured)", fontsize=9)
     fig.tight_layout()
-    _save(fig, path)
+    atomic_write_figure(path, fig)
 
 
 def write_report(chain: Path, summary: dict, folder: Path, post=None, table=None,
@@ -219,7 +211,7 @@ def write_report(chain: Path, summary: dict, folder: Path, post=None, table=None
         ax.set_ylabel(name, fontsize=8)
     axes[-1, 0].set_xlabel("step (dashed: end of burn-in); colours: independent ensembles")
     fig.tight_layout()
-    _save(fig, folder / "trace.png")
+    atomic_write_figure(folder / "trace.png", fig)
     written.append(folder / "trace.png")
 
     draws = np.concatenate([c[burn::thin].reshape(-1, len(names)) for c, _ in runs])
@@ -227,7 +219,7 @@ def write_report(chain: Path, summary: dict, folder: Path, post=None, table=None
     fig = corner.corner(draws, fig=Figure(figsize=(size, size)), labels=names,
                         quantiles=[0.05, 0.5, 0.95], show_titles=True, title_fmt=".3g",
                         title_kwargs={"fontsize": 8}, label_kwargs={"fontsize": 8})
-    _save(fig, folder / "corner.png")
+    atomic_write_figure(folder / "corner.png", fig)
     written.append(folder / "corner.png")
 
     if post is not None:
@@ -247,7 +239,7 @@ def write_report(chain: Path, summary: dict, folder: Path, post=None, table=None
     ax.set_xlabel("max |eigenvalue| of the gait's period map (< 1: stable)")
     ax.set_ylabel("posterior draws")
     fig.tight_layout()
-    _save(fig, folder / "eigenvalues.png")
+    atomic_write_figure(folder / "eigenvalues.png", fig)
     written.append(folder / "eigenvalues.png")
 
     summary = dict(summary)
@@ -345,7 +337,7 @@ def _predictive_figure(obs, predictive: dict, path: Path) -> None:
     handles, labels = axes[0, 0].get_legend_handles_labels()
     fig.legend(handles[:2], labels[:2], loc="upper center", ncol=2, fontsize=8, frameon=False)
     fig.tight_layout(rect=(0, 0, 1, 0.96))
-    _save(fig, path)
+    atomic_write_figure(path, fig)
 
 
 def _return_map(table, eig: np.ndarray, summary: dict, folder: Path) -> list[str]:
@@ -384,7 +376,7 @@ def _return_map(table, eig: np.ndarray, summary: dict, folder: Path) -> list[str
     ax.set_yticks([])
     ax.legend(fontsize=7, loc="upper left")
     fig.tight_layout()
-    _save(fig, folder / "returnmap.png")
+    atomic_write_figure(folder / "returnmap.png", fig)
     lines = ["## The return map from the measured strides", "",
              f"{rm.n_pairs} stride pairs, {rm.rank} of {len(rm.coordinates)} section directions "
              "above the noise (sysid/returnmap.py).", "",

@@ -22,6 +22,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from .common import CommandError, output_path, parse_size, refuse_overwrite, scuffs_in
+
 __all__ = ["cmd_render", "out_of_view_warning", "register"]
 
 
@@ -49,7 +51,6 @@ def cmd_render(args) -> int:
     import numpy as np
     from toywalk.model.parameters import ParameterError, load_params
     from toywalk.model.trajectory import read_trajectory, trajectory_paths
-    from toywalk.sysid.cli import CommandError, output_path, parse_size, refuse_overwrite, scuffs_in
     from toywalk.tracking.camera import CameraError, load_camera
     from toywalk.tracking.markers import LayoutError, default_layout, load_layout
     from toywalk.tracking.render import RenderError, RenderOptions, default_filming, output_paths, render

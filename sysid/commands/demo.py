@@ -27,7 +27,13 @@ from pathlib import Path
 
 from toywalk.model.files import software_version
 
+from . import calibrate, track
+from .common import CommandError, run
+
 __all__ = ["cmd_demo", "register", "SAMPLE_FREE"]
+
+#: The commands the demo's first two stages run, each as ``toywalk`` would (its line on error).
+_STAGES = (calibrate, track)
 
 #: The base fit's free parameters: what a builder measures least well on a toy (the foot's
 #: fore-aft radius of curvature and the balance mass's sideways offset).
@@ -52,7 +58,6 @@ def _say(message: str) -> None:
 
 def cmd_demo(args) -> int:
     from toywalk.model.files import DATA_DIR as _DATA
-    from toywalk.sysid.cli import CommandError, main
 
     out = Path(args.out)
     if out.exists() and not out.is_dir():
@@ -78,12 +83,12 @@ def cmd_demo(args) -> int:
     print(f"1. Calibrating the camera from {len(views)} views of a ChArUco board "
           f"({views[0].parent.relative_to(here)}/)")
     lap = time.perf_counter()
-    status = main(["calibrate", *map(str, views), "--out", str(out / "camera.json")])
+    status = run(["calibrate", *map(str, views), "--out", str(out / "camera.json")], _STAGES)
     if status != 0:
         return status
     print(f"\n2. Tracking the sample video ({video.relative_to(here)}) with that lens")
-    status = main(["track", str(video), "--camera", str(out / "camera.json"), "--markers",
-                   str(sample / "walk.markers.json"), "--out", str(out / "tracked.csv")])
+    status = run(["track", str(video), "--camera", str(out / "camera.json"), "--markers",
+                  str(sample / "walk.markers.json"), "--out", str(out / "tracked.csv")], _STAGES)
     if status != 0:
         return status
     seconds["calibrate and track"] = time.perf_counter() - lap
@@ -97,7 +102,6 @@ def _analyse(out: Path, params_path: Path, sample: Path, workers: int, sample_st
     from toywalk.model.files import atomic_write_json, atomic_write_text
     from toywalk.model.parameters import load_params
     from toywalk.model.trajectory import read_trajectory
-    from toywalk.sysid.cli import CommandError
     from toywalk.sysid.diagnosis_report import write_diagnosis
     from toywalk.sysid.discrepancy import diagnose
     from toywalk.sysid.fit import CONTACT_KEYS, FitError
@@ -165,8 +169,8 @@ def _analyse(out: Path, params_path: Path, sample: Path, workers: int, sample_st
             raise CommandError(f"sampling: {err}") from err
         posterior = summary.to_json()
         atomic_write_json(chain.with_suffix(".json"), posterior)
-        from toywalk.sysid.diagnostics import write_report
         from toywalk.sysid.sample import posterior_from_fit
+        from toywalk.sysid.sample_report import write_report
 
         write_report(chain, posterior, out / "posterior", posterior_from_fit(report, table)[0], table)
         seconds["sample"] = time.perf_counter() - lap

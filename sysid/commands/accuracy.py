@@ -19,6 +19,8 @@ from pathlib import Path
 
 from toywalk.model.files import software_version
 
+from .common import CommandError, load_walker, output_path, parse_size, refuse_overwrite, say
+
 __all__ = ["cmd_accuracy", "describe_phase_errors", "register"]
 
 
@@ -49,7 +51,6 @@ def register(subparsers) -> None:
 
 def _like(video: Path) -> dict:
     """What ``--like`` says of the filming: fps, size, and render's noise level and layout file."""
-    from toywalk.sysid.cli import CommandError
     from toywalk.tracking.render import output_paths
     from toywalk.tracking.video import TrackError, declared_fps, declared_size
 
@@ -82,7 +83,6 @@ def describe_phase_errors(errors) -> str:
 
 def cmd_accuracy(args) -> int:
     from toywalk.model.files import atomic_write_text
-    from toywalk.sysid.cli import CommandError, load_walker, output_path, parse_size, refuse_overwrite, say
     from toywalk.tracking.accuracy_phase import AccuracyError, measure_by_rendering
     from toywalk.tracking.camera import CameraError, load_camera
     from toywalk.tracking.markers import LayoutError, load_layout

@@ -5,6 +5,8 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+from .common import CommandError, output_path
+
 __all__ = ["cmd_sample", "register"]
 
 
@@ -39,11 +41,10 @@ def cmd_sample(args) -> int:
     from toywalk.model.files import atomic_write_json, read_json_object
     from toywalk.model.parameters import parameter_unit
     from toywalk.model.trajectory import read_trajectory
-    from toywalk.sysid.cli import CommandError, output_path
-    from toywalk.sysid.diagnostics import misfit_notes, write_report
     from toywalk.sysid.fit import FitError
     from toywalk.sysid.measurement import MeasurementError
     from toywalk.sysid.sample import SampleError, sample
+    from toywalk.sysid.sample_report import misfit_notes, write_report
 
     out = output_path(args.out, (".h5", ".hdf5"))
     if args.workers < 1:

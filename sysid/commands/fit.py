@@ -6,7 +6,7 @@ released off its cycle fitted as a gait gives biased parameters. ``--model perio
 ``transient`` fits one model only.
 
 Whatever takes more than a few seconds says one line on stderr before it starts, flushed, whether
-stderr is a terminal, a file or a pipe (:func:`toywalk.sysid.cli.say`): under ``--model auto``
+stderr is a terminal, a file or a pipe (:func:`toywalk.sysid.commands.common.say`): under ``--model auto``
 each of the periodicity test's fits and the chosen fit (``... the transient model, on its own heel
 strikes``), with ``--model`` each stage of the one fit, with ``--multistart`` each start. A long
 walk's default fit takes a minute or more (60 steps off its cycle: 56 s).
@@ -22,6 +22,8 @@ import math
 import sys
 
 from toywalk.model.files import software_version
+
+from .common import CommandError, load_walker, output_path, say
 
 __all__ = ["cmd_fit", "register"]
 
@@ -62,7 +64,6 @@ def cmd_fit(args) -> int:
     from toywalk.model.files import atomic_write_json, strict_json
     from toywalk.model.trajectory import read_trajectory
     from toywalk.model.walker import CLEARANCE_RESOLUTION, describe_scuffs
-    from toywalk.sysid.cli import CommandError, load_walker, output_path, say
     from toywalk.sysid.fit import CONTACT_KEYS, FitError, fit
 
     out = output_path(args.out, (".json",))
@@ -150,7 +151,6 @@ def _multi_start(table, params, free, args, options):
     """The multi-start fits (periodic under ``--model auto``), one line per start and the verdict."""
     from pathlib import Path
 
-    from toywalk.sysid.cli import CommandError, say
     from toywalk.sysid.multistart import multi_start
 
     folder = Path(args.multistart) if args.multistart else None

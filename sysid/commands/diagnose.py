@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from toywalk.model.files import software_version
 
+from .common import CommandError, load_walker, say
+
 __all__ = ["cmd_diagnose", "register"]
 
 
@@ -47,7 +49,6 @@ def cmd_diagnose(args) -> int:
 
     from toywalk.model.parameters import ParameterError
     from toywalk.model.trajectory import read_trajectory
-    from toywalk.sysid.cli import CommandError, load_walker
     from toywalk.sysid.diagnosis_report import write_diagnosis
     from toywalk.sysid.discrepancy import diagnose
     from toywalk.sysid.fit import FitError
@@ -141,14 +142,12 @@ def _split(text):
 
 def _say(message: str) -> None:
     """A progress line on stderr, flushed, to a terminal, file or pipe alike
-    (:func:`toywalk.sysid.cli.say`)."""
-    from toywalk.sysid.cli import say
+    (:func:`toywalk.sysid.commands.common.say`)."""
 
     say(message)
 
 
 def _alpha(args) -> float:
-    from toywalk.sysid.cli import CommandError
     from toywalk.sysid.naming import ALPHA
 
     alpha = ALPHA if args.alpha is None else args.alpha
@@ -162,7 +161,6 @@ def _workers(args) -> int:
     held-out folds run side by side)."""
     import os
 
-    from toywalk.sysid.cli import CommandError
 
     workers = min(4, os.cpu_count() or 1) if args.workers is None else args.workers
     if workers < 1:
@@ -174,7 +172,6 @@ def _free(args) -> list[str]:
     """``--free``'s names, checked before any fit: a misspelt one is refused at once, not after
     minutes of fitting."""
     from toywalk.model.parameters import PARAMETER_NAMES
-    from toywalk.sysid.cli import CommandError
 
     free = _split(args.free) or []
     unknown = [name for name in free if name not in PARAMETER_NAMES]
@@ -188,7 +185,6 @@ def _walks(args, out) -> int:
     """diagnose on several walks together (:func:`toywalk.sysid.walks.diagnose_walks`)."""
     from toywalk.model.parameters import ParameterError
     from toywalk.model.trajectory import read_trajectory
-    from toywalk.sysid.cli import CommandError, load_walker
     from toywalk.sysid.diagnosis_report import write_walks_diagnosis
     from toywalk.sysid.fit import FitError
     from toywalk.sysid.measurement import MeasurementError, observations
@@ -243,7 +239,6 @@ def _walks(args, out) -> int:
 def _summary(args, params, out) -> int:
     """diagnose on summary statistics (:mod:`toywalk.sysid.summary`)."""
     from toywalk.model.parameters import ParameterError
-    from toywalk.sysid.cli import CommandError
     from toywalk.sysid.diagnosis_report import write_summary_diagnosis
     from toywalk.sysid.naming import DiagnoseError
     from toywalk.sysid.summary import SummaryError, diagnose_summary, read_summary

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from .common import CommandError, output_path
+
 __all__ = ["cmd_calibrate", "register"]
 
 
@@ -20,7 +22,6 @@ def register(subparsers) -> None:
 
 
 def cmd_calibrate(args) -> int:
-    from toywalk.sysid.cli import CommandError, output_path
     from toywalk.tracking.calibrate import (
         DEFAULT_BOARD,
         BoardSpec,

@@ -1,0 +1,214 @@
+"""``toywalk gait --params P.toml``: find the walker's gait and its stability; with ``--continue
+NAME FROM TO --out TABLE.csv``, follow the gait family in one parameter (table, events and plot)."""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from pathlib import Path
+
+from toywalk.model.files import staged_files
+
+from .common import CommandError, load_walker, output_path, with_effects
+
+__all__ = ["cmd_gait", "register"]
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser("gait", help="find the symmetric gait and its stability")
+    p.add_argument("--params", required=True, help="parameter TOML file")
+    p.add_argument("--effect", action="append", metavar="NAME=VALUE",
+                   help="set an effect's strength (repeatable; `toywalk effects` lists them)")
+    p.add_argument("--json", action="store_true", help="machine-readable output")
+    p.add_argument("--continue", dest="continue_", nargs=3, metavar=("NAME", "FROM", "TO"),
+                   help="follow the gait family in parameter NAME from FROM to TO")
+    p.add_argument("--points", type=int, default=100, help="with --continue: at most this many gaits")
+    p.add_argument("--out", help="with --continue: table TABLE.csv (plot and events beside it)")
+    p.set_defaults(func=cmd_gait)
+
+
+def cmd_gait(args) -> int:
+    params = with_effects(load_walker(args.params), args.effect)
+    if args.continue_:
+        return _continue(args, params)
+    gait = _find_gait(params)
+    report = _gait_report(params, gait)
+    if args.json:
+        json.dump(report, sys.stdout, indent=2, default=float)
+        sys.stdout.write("\n")
+    else:
+        _print_gait(report)
+    return 0
+
+
+def _continue(args, params) -> int:
+    from toywalk.model.continuation import continue_branch
+    from toywalk.model.gait import GaitNotFound
+    from toywalk.model.parameters import ParameterError
+
+    name, start, end = args.continue_
+    try:
+        start, end = float(start), float(end)
+    except ValueError as err:
+        raise CommandError(
+            f"--continue NAME FROM TO: FROM and TO must be numbers, got {start!r} {end!r}"
+        ) from err
+    if args.out is None:
+        raise CommandError("--continue needs --out TABLE.csv (the plot is written beside it)")
+    out = output_path(args.out, (".csv",))
+    if args.points < 2:
+        raise CommandError(f"--points must be >= 2, got {args.points}")
+    try:
+        branch = continue_branch(params, name, start, end, max_points=args.points,
+                                 progress=sys.stderr.isatty())
+    except (ParameterError, ValueError) as err:
+        raise CommandError(str(err)) from err
+    except GaitNotFound as err:
+        raise CommandError(f"no gait found at {name} = {start}: {err}") from err
+    _write_branch(branch, out)
+    for event in branch.events:
+        print(event.detail)
+    hint = " (more with a larger --points)" if branch.status == "max_points" else ""
+    print(f"{branch.status}: {branch.message}{hint}; {len(branch.points)} gaits -> {out}, "
+          f"{out.with_suffix('.png')}, {out.with_suffix('.json')}")
+    return 0
+
+
+def _write_branch(branch, out: Path) -> None:
+    """Table (CSV), events and status (JSON) and a plot (PNG), each written atomically."""
+    import csv
+    import io
+
+    cols, rows = branch.table()
+    buf = io.StringIO()
+    writer = csv.writer(buf)
+    writer.writerow(cols)
+    for row in rows:
+        writer.writerow([repr(float(v)) for v in row])
+    info = {"parameter": branch.name, "status": branch.status, "message": branch.message,
+            "planar": branch.planar, "map": "step" if branch.period == 1 else "stride",
+            "events": [{"kind": e.kind, "value": e.value, "detail": e.detail} for e in branch.events]}
+    outputs = [out, out.with_suffix(".json"), out.with_suffix(".png")]
+    with staged_files(outputs) as (csv_file, json_file, png):
+        csv_file.write_text(buf.getvalue())
+        json_file.write_text(json.dumps(info, indent=2) + "\n")
+        _plot_branch(branch, rows, png)
+
+
+def _plot_branch(branch, rows, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.ticker import MaxNLocator
+    from toywalk.model.parameters import parameter_unit
+
+    fig, axes = plt.subplots(2, 1, figsize=(6, 6), sharex=True)
+    x = rows[:, 0]
+    stable = rows[:, 4] > 0.5
+    axes[0].plot(x, rows[:, 3], "-", color="0.6", lw=1)
+    axes[0].plot(x[stable], rows[stable, 3], "o", ms=3, label="stable")
+    axes[0].plot(x[~stable], rows[~stable, 3], "x", ms=4, label="unstable")
+    axes[0].axhline(1.0, color="k", lw=0.8, ls="--")
+    axes[0].set_ylabel(f"{'step' if branch.period == 1 else 'stride'} map max |eigenvalue|")
+    axes[0].legend(loc="best", fontsize=8)
+    axes[1].plot(x, rows[:, 1], "-o", ms=3)
+    axes[1].set_ylabel("step time (s)")
+    axes[1].set_xlabel(f"{branch.name} ({parameter_unit(branch.name)})")
+    for ax in axes:  # plain numbers: an offset ("1e-7+3.6951e-1") hides the values read off
+        ax.ticklabel_format(useOffset=False)
+    axes[1].xaxis.set_major_locator(MaxNLocator(nbins=6))  # room for their many digits
+    axes[1].tick_params(axis="x", labelrotation=30)
+    for event in branch.events:
+        for ax in axes:
+            ax.axvline(event.value, color="r" if event.kind != "fold" else "b", lw=0.8, alpha=0.7)
+    axes[0].set_title(f"gait family in {branch.name}" + (" (planar reduction)" if branch.planar else ""))
+    fig.tight_layout()
+    fig.savefig(path, dpi=120, format="png")
+    plt.close(fig)
+
+
+def _find_gait(params):
+    from toywalk.model.gait import GaitNotFound, find_gait
+
+    try:
+        return find_gait(params)
+    except GaitNotFound as err:
+        raise CommandError(f"no gait found: {err}") from err
+
+
+def _gait_report(params, gait) -> dict:
+    from toywalk.model.statics import can_stand
+    from toywalk.model.walker import CLEARANCE_RESOLUTION
+
+    report = gait.summary()
+    standing = can_stand(params)
+    report["can_stand"] = bool(standing.can_stand)
+    report["standing"] = standing.reason
+    report["clearance_resolution"] = CLEARANCE_RESOLUTION * params.leg_length  # 0 to round-off
+    report["units"] = {"step_time": "s", "stride_length": "m", "angles": "rad",
+                       "rates": "rad/s", "clearance": "m"}
+    return report
+
+
+def _print_gait(report: dict, out=None) -> None:
+    from toywalk.model.walker import describe_scuffs
+
+    out = sys.stdout if out is None else out  # looked up per call, not bound at import
+    fp = report["fixed_point"]
+    print(f"status            {report['status']}{' (planar reduction)' if report['planar'] else ''}",
+          file=out)
+    stride = report["map"] == "stride"
+    if stride:
+        print("periodic over     a stride (two steps): an effect breaks the left-right symmetry; "
+              "eigenvalues are the stride map's", file=out)
+        times = ", ".join(f"{t:.6g}" for t in report["step_times"])
+        print(f"step times        {times} s  (stride {report['stride_time']:.6g} s)", file=out)
+    else:
+        print(f"step time         {report['step_time']:.6g} s  (stride {report['stride_time']:.6g} s)",
+              file=out)
+    print(f"stride length     {report['stride_length']:.6g} m", file=out)
+    if stride:
+        print(f"sideways drift    {report['stride_drift']:.4g} m per stride (heading "
+              f"{math.degrees(report['heading']):.4g} deg from the fall line, left +)", file=out)
+    print(f"lean amplitude    {math.degrees(report['lean_amplitude']):.4g} deg", file=out)
+    print(f"steer amplitude   {math.degrees(report['steer_amplitude']):.4g} deg", file=out)
+    print("fixed point (just after heel strike):", file=out)
+    for name, value in fp.items():
+        print(f"  {name:<14s} {value: .10g}", file=out)
+    print(f"{report['map']}-map eigenvalues (|lambda|, dominant components):", file=out)
+    for e in report["eigenvalues"]:
+        print(f"  {e['re']: .6f} {e['im']:+.6f}i   |{e['abs']:.6f}|   {', '.join(e['dominant'])}",
+              file=out)
+    verdict = "stable" if report["stable"] else "unstable"
+    print(f"max |eigenvalue|  {report['max_abs_eigenvalue']:.6g} ({verdict}; over 20 steps a "
+          f"perturbation grows by {report['growth_factor_20_steps']:.3g})", file=out)
+    lam = report.get("fold_eigenvalue")
+    if lam is not None:
+        print(f"at a fold         an eigenvalue {lam:.6g} lies {abs(1 - lam):.2g} from 1: the gait is at the "
+              f"end of its branch, and a small change of slope or an effect can remove it", file=out)
+    losses = ", ".join(f"{loss:.4g}" for loss in report["collision_loss"])
+    print(f"collision loss    {losses} J per heel strike", file=out)
+    swing, tol = report["swing_clearance"], report["clearance_resolution"]
+    where = "as the legs pass" if swing["where"] == "legs passing" else (
+        f"{1e3 * abs(swing['ahead']):.3g} mm {'ahead of' if swing['ahead'] > 0 else 'behind'} the "
+        "stance foot")
+    print(f"swing clearance   the swing foot {_height(report['clearance'], tol)} at its lowest "
+          f"({100 * swing['phase']:.0f} % into the step, {where}); after the legs pass it "
+          f"{_height(report['clearance_after_passing'], tol)}; it rises {1e3 * swing['apex']:.3g} mm "
+          "at its highest", file=out)
+    scuffs = describe_scuffs(report["scuffs"], report["period_steps"], report["clearance"], tol)
+    print(f"scuffs            {scuffs or 'none before the legs pass'}", file=out)
+    print(f"can stand         {report['can_stand']}: {report['standing']}", file=out)
+
+
+def _height(height: float, resolution: float) -> str:
+    """How the swing foot stands to the ramp at ``height`` (m), in mm: "clears the ramp by 3.48 mm",
+    "touches the ramp (0 mm to round-off)" within ``resolution`` (m) of 0, or "goes 0.536 mm below
+    the ramp"."""
+    if height > resolution:
+        return f"clears the ramp by {1e3 * height:.3g} mm"
+    if height >= -resolution:
+        return "touches the ramp (0 mm to round-off)"
+    return f"goes {-1e3 * height:.3g} mm below the ramp"
