@@ -4,7 +4,7 @@ import math
 
 import numpy as np
 import pytest
-from toywalk.model import Walker, find_gait, load_params
+from toywalk.model import Walker, find_gait, load_params, simulate
 from toywalk.model.basin import (
     basin_radius,
     eigen_directions,
@@ -145,3 +145,29 @@ def test_the_hand_launch_starts_on_one_foot_and_the_clearing_toy_falls(clearing_
     launch = hand_launch(params, [tip], gait=gait)
     assert launch.results[0][0].reason == "fell" and launch.results[0][0].steps <= 3
     assert launch.tip_range() is None
+
+
+def test_recovers_agrees_with_the_dense_simulation(clearing_gait):
+    """A second route to the same verdict: simulate (dense samples, physical frame) from the
+    starts just inside and just outside the basin along a random direction. Inside, it walks the
+    steps recovers took and ends on the gait's step time; outside, it stops as recovers did, at the same
+    step."""
+    params, gait = clearing_gait.params, clearing_gait
+    walker = Walker(params)
+    unit = random_directions(params, gait, 1, rng=3)[0]
+    r = basin_radius(params, unit, gait, walker=walker)
+    inside = perturbed(params, gait, unit, r.radius, walker)
+    outside = perturbed(params, gait, unit, r.upper, walker)
+    good, bad = recovers(params, inside, gait, walker=walker), recovers(params, outside, gait, walker=walker)
+    assert good.recovered and not bad.recovered and bad.reason != "not_converged"
+    walk = simulate(params, inside, good.steps)
+    assert walk.status == "completed" and walk.scuffs == 0
+    # back on the gait: its last step lasts the gait's step time (recovers' tolerance, 1e-4 of a
+    # state unit, moves the step time by about that fraction; 1e-3 leaves a margin of 10)
+    last = walk.events[-1].time - walk.events[-2].time
+    assert last == pytest.approx(gait.step_time, rel=1e-3)
+    fall = simulate(params, outside, bad.steps + 5)
+    if bad.reason == "scuffed":
+        assert fall.scuffs > 0
+    else:
+        assert fall.status == bad.reason and len(fall.events) == bad.steps
