@@ -38,7 +38,7 @@ from .walker import (
 )
 
 __all__ = ["Gait", "GaitNotFound", "Stability", "continue_gait", "find_gait", "lateral_singular",
-           "planar_gaits", "planar_reduction", "solve_fixed_point"]
+           "planar_gaits", "planar_reduction", "solve_fixed_point", "state_scale"]
 
 # Newton on the fixed point: residual tolerance (max abs over the state, rad and rad/s scaled by
 # sqrt(l/g)) and iteration cap.
@@ -212,7 +212,7 @@ class Gait(Stability):
         Rates are measured in rad per sqrt(l/g), angles in rad, so that the shares compare like
         with like (a rate in rad/s of a small, fast walker would otherwise always dominate).
         """
-        vec = np.abs(self.eigenvectors[:, k]) / _state_scale(self.params)
+        vec = np.abs(self.eigenvectors[:, k]) / state_scale(self.params)
         share = vec / max(vec.sum(), 1e-300)
         order = np.argsort(share)[::-1][:n]
         return [(STATE_NAMES[i], float(share[i])) for i in order]
@@ -290,7 +290,7 @@ def solve_fixed_point(walker: Walker, z0: np.ndarray, tol: float = _NEWTON_TOL,
         The iteration failed (a step fell, or no convergence); the message says how.
     """
     active = [4, 5, 6, 7] if walker.planar else list(range(8))
-    scale = _state_scale(walker.params)
+    scale = state_scale(walker.params)
     z = np.array(z0, dtype=float)
     if walker.planar:
         z[:4] = 0.0
@@ -387,7 +387,10 @@ _CHORD_RATE = 0.25
 _CHORD_MAXIT = 16
 
 
-def _state_scale(params: Params) -> np.ndarray:
+def state_scale(params: Params) -> np.ndarray:
+    """The unit of each public state component, shape (8,): 1 rad for the angles and 1 /
+    sqrt(l/g) (rad/s) for the rates, so that ``z / state_scale(params)`` is dimensionless (the
+    scale of Newton's residual here and of a perturbation in :mod:`toywalk.model.basin`)."""
     rate = 1.0 / params.time_scale
     return np.array([1.0, rate] * 4)
 

@@ -25,6 +25,11 @@ def register(subparsers) -> None:
                    help="follow the gait family in parameter NAME from FROM to TO")
     p.add_argument("--points", type=int, default=100, help="with --continue: at most this many gaits")
     p.add_argument("--out", help="with --continue: table TABLE.csv (plot and events beside it)")
+    p.add_argument("--basin", action="store_true",
+                   help="also the basin: radii along eigenvectors and random directions, hand launches")
+    p.add_argument("--directions", type=int, default=20, metavar="N",
+                   help="with --basin: random directions (default 20)")
+    p.add_argument("--seed", type=int, default=0, help="with --basin: seed of the random directions")
     p.set_defaults(func=cmd_gait)
 
 
@@ -34,12 +39,36 @@ def cmd_gait(args) -> int:
         return _continue(args, params)
     gait = _find_gait(params)
     report = _gait_report(params, gait)
+    if args.basin:
+        from toywalk.model.basin import basin_report
+
+        report["basin"] = basin_report(gait, n_random=args.directions, seed=args.seed)
     if args.json:
         json.dump(report, sys.stdout, indent=2, default=float)
         sys.stdout.write("\n")
     else:
         _print_gait(report)
+        if args.basin:
+            _print_basin(report["basin"])
     return 0
+
+
+def _print_basin(basin: dict, out=None) -> None:
+    out = sys.stdout if out is None else out
+    eig, rnd = basin["eigenvector_radius"], basin["random"]["radius"]
+    print(f"basin             (sizes in {basin['units']}; scuffs "
+          f"{'end a walk' if basin['scuffs_fail'] else 'let through, as the gait does'})", file=out)
+    print(f"  along eigenvectors   min {eig['min']:.3g}  median {eig['median']:.3g}  max {eig['max']:.3g}"
+          f"  ({len(basin['eigenvectors'])} directions)", file=out)
+    if rnd is not None:
+        print(f"  along random dirs    min {rnd['min']:.3g}  median {rnd['median']:.3g}  max {rnd['max']:.3g}"
+              f"  ({basin['random']['n']} directions, seed {basin['random']['seed']})", file=out)
+    for row in basin["hand_launch"]:
+        verdict = "walks into the gait" if row["recovered"] else f"{row['reason']} after {row['steps']} steps"
+        print(f"  hand launch tipped {math.degrees(row['tip']):5.2f} deg "
+              f"({row['tip_over_lean']:.1f} x lean), heading {math.degrees(row['heading']):.1f} deg: "
+              f"{verdict}", file=out)
+    print(f"  ({basin['seconds']:.1f} s)", file=out)
 
 
 def _continue(args, params) -> int:

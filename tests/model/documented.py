@@ -7,7 +7,12 @@ digits; ``assert_documented`` checks that the model, run as the documents say (d
 grid), rounds to it: the tolerance is half a unit of the last quoted digit.
 """
 
-__all__ = ["Z_CLEARING", "Z_STABLE", "assert_documented"]
+import numpy as np
+from toywalk.model import Walker, load_params, solve_fixed_point
+
+from ..conftest import DATA
+
+__all__ = ["Z_CLEARING", "Z_STABLE", "assert_documented", "shipped_gait"]
 
 #: The gait of data/params/stable-toy.toml (docs/gaits.md).
 Z_STABLE = [0.04661788900461893, -0.5141677402083711, -0.001876783030565294, 0.021718470946236697,
@@ -22,3 +27,10 @@ Z_CLEARING = [0.07050947332653978, -0.46650017313326736, -0.010489277599679167, 
 def assert_documented(value, documented, unit, what):
     """``value`` rounds to ``documented``, a number quoted to a multiple of ``unit``."""
     assert abs(value - documented) <= 0.5 * unit * (1 + 1e-9), f"{what}: {value!r} vs {documented}"
+
+
+def shipped_gait(name: str):
+    """The gait of ``data/params/<name>.toml`` ("stable-toy" or "clearing-toy"), Newton-polished
+    from its documented fixed point."""
+    start = {"stable-toy": Z_STABLE, "clearing-toy": Z_CLEARING}[name]
+    return solve_fixed_point(Walker(load_params(DATA / "params" / f"{name}.toml")), np.array(start))
