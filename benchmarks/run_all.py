@@ -44,7 +44,7 @@ REF_STEPS_PER_TIME_UNIT = 128
 _MIN_REPEAT_S = 0.02
 #: Published simplest-walker step-map eigenvalues and gait (Garcia, Chatterjee, Ruina & Coleman,
 #: J. Biomech. Eng. 120:281, 1998, recomputed with sensitivity equations at tolerance 1e-13;
-#: shared/reference/anchors.md). Two further eigenvalues are 0.
+#: docs/model.md section 7). Two further eigenvalues are 0.
 PUBLISHED_EIGENVALUES = np.array([
     -0.190099841064371 + 0.557598776683120j,
     -0.190099841064371 - 0.557598776683120j,

@@ -157,7 +157,7 @@ def main(maxiter: int, rounds: int, max_eigenvalue: float, clearance: float, log
     save_params(params, HERE / "clearance_best.toml", header="search result (docs/make_clearance_design.py)")
 
 
-# The toy's gait (Coleman & Ruina 1998, PRL 80:3658; shared/reference/anchors.md): stride time (s),
+# The toy's gait (Coleman & Ruina 1998, PRL 80:3658; docs/model.md section 7): stride time (s),
 # advance per stride (m), side-to-side tilt (rad).
 TOY = {"stride_time": 0.47, "stride_length": 0.013, "lean_amplitude": math.radians(4.0)}
 

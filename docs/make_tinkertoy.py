@@ -1,5 +1,5 @@
 """Fit Tinkertoy-sized walker parameters to the toy's measured gait (Coleman & Ruina, PRL 80:3658,
-1998; shared/reference/anchors.md) and write docs/tinkertoy.md.
+1998; docs/model.md section 7) and write docs/tinkertoy.md.
 
 Fixed (measured or construction): 4.5 degree ramp, leg length 0.15 m, total mass 120 g (two legs of
 55 g, each with its ~50 g balance mass, and a 10 g axle). Free, within Tinkertoy-plausible bounds:
@@ -25,7 +25,7 @@ HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 PARAMS = ROOT / "data" / "params" / "tinkertoy.toml"
 
-# The toy's measurements (Coleman & Ruina 1998; anchors.md): value, tolerated misfit for the fit.
+# The toy's measurements (Coleman & Ruina 1998; docs/model.md section 7): value, tolerated misfit for the fit.
 MEASURED = {
     "stride_time": (0.47, 0.01),            # s, collision to next collision of the same foot
     "stride_length": (0.013, 0.001),        # m, advance per stride

@@ -4,7 +4,9 @@ The model's physics is ``docs/model.md``; file formats, the command line and the
 are ``docs/formats.md``, ``docs/cli.md`` and ``README.md``. Citations of the developers' design
 notes, which a user of the package cannot open, are refused: ``pipeline.md`` anywhere, ``model.md``
 other than as ``docs/model.md`` (inside ``docs/*.md`` the sibling ``model.md`` is the same page), and
-paths that climb out of the repository (``../shared``, ``../reference``). This reads files only: it
+paths that climb out of the repository (``../shared``, ``../reference``), and the design notes'
+reference numbers and style rules (``anchors.md``, ``style.md``: docs/model.md section 7 holds the
+published numbers, tests/README.md the rules for tests). This reads files only: it
 imports nothing of toywalk.
 """
 
@@ -22,7 +24,8 @@ ALLOWED: set = set()
 # "model.md" as a file name, not the tail of a longer one ("toymodel.md"), and the path before it.
 _MODEL_MD = re.compile(r"(?<![\w-])model\.md")
 _PATH_BEFORE = re.compile(r"[\w./~-]*$")
-_OUTSIDE = ("pipeline.md", "../shared", "../reference")
+_OUTSIDE = ("pipeline.md", "../shared", "../reference", "anchors.md", "style.md", "shared/design",
+            "shared/reference")
 
 
 def _sources() -> list[Path]:

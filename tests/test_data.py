@@ -55,7 +55,7 @@ def test_every_parameter_set_reads(name):
 
 
 def test_the_papers_measurements():
-    """The table's numbers are the paper's (Coleman & Ruina 1998, as anchors.md quotes them)."""
+    """The table's numbers are the paper's (Coleman & Ruina 1998, as docs/model.md section 7 quotes them)."""
     with open(DATA / "paper" / "measurements.csv", newline="") as f:
         rows = {r["quantity"]: r for r in csv.DictReader(f)}
     expected = {"slope": (4.5, "deg"), "stride_time": (0.47, "s"), "stride_length": (0.013, "m"),

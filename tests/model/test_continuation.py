@@ -12,7 +12,8 @@ from toywalk.model.walker import Walker
 from ..conftest import DATA
 from .documented import assert_documented
 
-GARCIA_BOUNDARY = 0.0150884  # anchors.md: an eigenvalue through -1 (Garcia et al. 1998, recomputed)
+# docs/model.md section 7: an eigenvalue through -1 (Garcia et al. 1998, recomputed)
+GARCIA_BOUNDARY = 0.0150884
 # A branch point is a gait when one step from it returns to it: |P(z) - z| (rates scaled by
 # sqrt(l/g)) within continuation's corrector tolerance 1e-10 (model/continuation.py); its points are
 # then polished by Newton, measured 2e-15 to 5e-14.

@@ -10,17 +10,19 @@ from toywalk.model.walker import Walker
 from ..conftest import DATA
 
 # Garcia, Chatterjee, Ruina & Coleman 1998, J. Biomech. Eng. 120:281, recomputed with sensitivity
-# equations at tolerance 1e-13 (shared/reference/anchors.md). Time in sqrt(l/g) units (g = l = 1).
+# equations at tolerance 1e-13 (docs/model.md section 7). Time in sqrt(l/g) units (g = l = 1).
 GARCIA_THETA = 0.20031090054428
 GARCIA_THETA_DOT = 0.19983247300499
-# The swing leg's rate: anchors.md gives, in Garcia's signs, theta_dot = -0.19983247300499 and the
-# inter-leg angle's rate phi_dot = -0.01582299994832; the swing leg's absolute angle is
-# theta - phi, and ours has the opposite sign: theta_sw_dot = -(theta_dot - phi_dot).
+# The swing leg's rate: the same recomputation gives, in Garcia's signs, theta_dot =
+# -0.19983247300499 and the inter-leg angle's rate phi_dot = -0.01582299994832; the swing leg's
+# absolute angle is theta - phi, and ours has the opposite sign: theta_sw_dot = -(theta_dot -
+# phi_dot).
 GARCIA_THETA_SW_DOT = 0.19983247300499 - 0.01582299994832
 GARCIA_STEP_TIME = 3.8824637528506
 GARCIA_EIG = -0.190099841064371 + 0.557598776683120j
 GARCIA_BOUNDARY = 0.0150884  # slope at which an eigenvalue leaves through -1
-# Garcia's own code comments (anchors.md): finite-difference-era values, off in the 11th digit.
+# Garcia's own code comments (docs/model.md section 7): finite-difference-era values, off in the
+# 11th digit.
 GARCIA_CODE_THETA = 0.20031090049483
 GARCIA_CODE_THETA_DOT = 0.19983247291764
 

@@ -31,7 +31,7 @@ Z_TINKERTOY = [0.06588800838779761, 0.2818328806369188, 0.0048322317613100395, 0
 TINKERTOY_FIXED_POINT_DOC = [0.065888, 0.281833, 0.00483223, 0.0214797, -0.0884968, 2.8939, 0.0898258,
                              3.80887]
 # The toy's measurements and the misfit the fit tolerated (Coleman & Ruina 1998, PRL 80:3658;
-# shared/reference/anchors.md; docs/make_tinkertoy.py): value, scale.
+# docs/model.md section 7; docs/make_tinkertoy.py): value, scale.
 TOY_MEASURED = {"stride_time": (0.47, 0.01), "stride_length": (0.013, 0.001),
                 "lean_amplitude": (math.radians(4.0), math.radians(0.5))}
 

@@ -20,7 +20,7 @@ def test_gait_json_has_the_documented_keys():
         assert key in report
     assert set(report["fixed_point"]) == {"phi", "phi_dot", "psi", "psi_dot", "theta_st",
                                           "theta_st_dot", "theta_sw", "theta_sw_dot"}
-    assert abs(report["step_time"] - 3.8824637528506) < 1e-6  # anchors.md, g = l = 1
+    assert abs(report["step_time"] - 3.8824637528506) < 1e-6  # docs/model.md section 7, g = l = 1
     assert {"re", "im"} <= set(report["eigenvalues"][0])
 
 

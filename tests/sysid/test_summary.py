@@ -60,7 +60,7 @@ def hidden(stable_gait):
 
 def test_the_papers_numbers_are_read_as_measurements():
     data = read_summary(PAPER)
-    # Coleman & Ruina 1998 (anchors.md): 0.47 s and 1.3 cm per stride, 4 deg tilt, no visible
+    # Coleman & Ruina 1998 (docs/model.md section 7): 0.47 s and 1.3 cm per stride, 4 deg tilt, no visible
     # steer, a 4.5 deg ramp; SDs the last printed digit (data/README.md).
     assert data.targets["stride_time"] == (0.47, 0.01)
     assert data.targets["stride_length"] == pytest.approx((0.013, 0.001), rel=1e-12)
