@@ -42,7 +42,7 @@ def test_simplest_walker_long_period_gait(simplest_search):
 
 
 @pytest.mark.xfail(strict=True, reason=(
-    "the short-period gait is not found: no start of the search (nor a 300-point grid in stance "
+    "the short-period gait is not found: no start of the search (nor over 800 grid starts in stance "
     "angle 0.01-0.4 rad and rate) converges to it in this model (docs/gaits.md section 6)"))
 def test_simplest_walker_short_period_gait(simplest_search):
     times = [round(f.gait.step_time, 4) for f in simplest_search.gaits]
