@@ -22,6 +22,7 @@ _WHERE = {
     "StepFailure": "walker",
     "Trajectory": "simulate",
     "Walker": "walker",
+    "all_gaits": "gait_search",
     "basin_radius": "basin",
     "can_stand": "statics",
     "describe_scuffs": "walker",

@@ -29,7 +29,12 @@ def register(subparsers) -> None:
                    help="also the basin: radii along eigenvectors and random directions, hand launches")
     p.add_argument("--directions", type=int, default=20, metavar="N",
                    help="with --basin: random directions (default 20)")
-    p.add_argument("--seed", type=int, default=0, help="with --basin: seed of the random directions")
+    p.add_argument("--seed", type=int, default=0,
+                   help="with --basin: seed of the random directions; with --all: of the random starts")
+    p.add_argument("--all", dest="all_gaits", action="store_true",
+                   help="every distinct gait found from many starts (model.gait_search.all_gaits)")
+    p.add_argument("--random-starts", type=int, default=0, metavar="N",
+                   help="with --all: also N random starts (default 0)")
     p.set_defaults(func=cmd_gait)
 
 
@@ -37,6 +42,8 @@ def cmd_gait(args) -> int:
     params = with_effects(load_walker(args.params), args.effect)
     if args.continue_:
         return _continue(args, params)
+    if args.all_gaits:
+        return _all_gaits(args, params)
     gait = _find_gait(params)
     report = _gait_report(params, gait)
     if args.basin:
@@ -50,6 +57,30 @@ def cmd_gait(args) -> int:
         _print_gait(report)
         if args.basin:
             _print_basin(report["basin"])
+    return 0
+
+
+def _all_gaits(args, params) -> int:
+    from toywalk.model.gait_search import FIXED_POINT_TOL, SAME_GAIT, all_gaits
+
+    search = all_gaits(params, n_random=args.random_starts, seed=args.seed)
+    report = {"gaits": [f.summary() for f in search.gaits], "starts": search.starts,
+              "converged": search.converged, "seconds": search.seconds,
+              "fixed_point_tol": FIXED_POINT_TOL, "same_gait": SAME_GAIT,
+              "units": {"step_time": "s", "stride_length": "m", "angles": "rad", "clearance": "m"}}
+    if args.json:
+        json.dump(report, sys.stdout, indent=2, default=float)
+        sys.stdout.write("\n")
+        return 0
+    print(f"{len(search.gaits)} distinct gaits from {search.starts} starts ({search.converged} "
+          f"converged, {search.seconds:.1f} s)")
+    print(f"{'step time':>11s} {'stride':>9s} {'lean':>7s} {'steer':>7s} {'max|eig|':>9s} "
+          f"{'stable':>6s} {'clearance':>9s}  found from")
+    for row in report["gaits"]:
+        print(f"{row['step_time']:9.6g} s {row['stride_length']:7.4g} m "
+              f"{math.degrees(row['lean_amplitude']):5.3g}dg {math.degrees(row['steer_amplitude']):5.3g}dg "
+              f"{row['max_abs_eigenvalue']:9.4g} {'yes' if row['stable'] else 'no':>6s} "
+              f"{1e3 * row['clearance']:6.3g} mm  {row['how']} (+{row['found_from'] - 1} more)")
     return 0
 
 
