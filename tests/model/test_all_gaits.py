@@ -15,8 +15,8 @@ from toywalk.model.walker import Walker
 from ..conftest import DATA
 
 # Garcia, Chatterjee, Ruina & Coleman 1998, J. Biomech. Eng. 120:281, at slope 0.009, step times in
-# sqrt(l/g) (shared/reference/anchors.md): the stable long-period gait 3.8824637528506, the unstable
-# short-period gait 3.096105868. The issue asks for them to the published digits, 3.8825 and 3.0961.
+# sqrt(l/g) (docs/model.md section 7): the stable long-period gait 3.8824637528506, the unstable
+# short-period gait 3.096105868; published to four decimals, 3.8825 and 3.0961.
 LONG_PERIOD, SHORT_PERIOD = 3.8825, 3.0961
 GARCIA_SLOPE = 0.009
 
@@ -71,7 +71,7 @@ def test_simplest_walker_short_period_gait_needs_a_second_touch(simplest, simple
         theta, theta_dot, _ = _garcia_step(*v, touch)
         return [theta - v[0], theta_dot - v[1]]
 
-    # The second touch: fsolve from near it (anchors.md gives the step time, not the state).
+    # The second touch: fsolve from near it (the reference is the step time, not the state).
     short = fsolve(residual, [0.19, -0.20], args=(1,), xtol=1e-12)
     assert round(_garcia_step(*short, 1)[2], 4) == SHORT_PERIOD
     # The same reference at the first touch is the long-period gait the search returns.

@@ -14,7 +14,7 @@ def test_gait_all_json_lists_the_gaits():
     assert out.returncode == 0, out.stderr
     report = json.loads(out.stdout)
     assert report["gaits"] and report["starts"] >= report["converged"] >= len(report["gaits"])
-    # Garcia et al. 1998 (shared/reference/anchors.md): the long-period gait, 3.8825 sqrt(l/g).
+    # Garcia et al. 1998 (docs/model.md section 7): the long-period gait, 3.8825 sqrt(l/g).
     assert round(report["gaits"][0]["step_time"], 4) == 3.8825
     row = report["gaits"][0]
     assert row["stable"] and row["how"] and row["residual"] < report["fixed_point_tol"]
