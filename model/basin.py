@@ -129,17 +129,22 @@ class RecoveryCurve:
     trials : int
         Random directions per size (the same directions at every size).
     recovered : ndarray of int, shape (n,)
-    probability : ndarray, shape (n,)
-        ``recovered / trials``.
-    se : ndarray, shape (n,)
-        Binomial standard error, sqrt(p (1 - p) / trials).
     """
 
     sizes: np.ndarray
     trials: int
     recovered: np.ndarray
-    probability: np.ndarray
-    se: np.ndarray
+
+    @property
+    def probability(self) -> np.ndarray:
+        """``recovered / trials``, shape (n,)."""
+        return self.recovered / self.trials
+
+    @property
+    def se(self) -> np.ndarray:
+        """Binomial standard error of :attr:`probability`, sqrt(p (1 - p) / trials)."""
+        p = self.probability
+        return np.sqrt(p * (1 - p) / self.trials)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -408,8 +413,7 @@ def recovery_curve(params: Params, sizes: Sequence[float], trials: int, seed=Non
             for u in directions)
         for s in sizes
     ])
-    p = counts / trials
-    return RecoveryCurve(sizes, trials, counts, p, np.sqrt(p * (1 - p) / trials))
+    return RecoveryCurve(sizes, trials, counts)
 
 
 def launch_state(tip: float, heading: float = 0.0) -> np.ndarray:
