@@ -59,7 +59,8 @@ def register(subparsers) -> None:
                         "read at its time)")
     p.add_argument("--accuracy", default=None, metavar="A.json",
                    help="the tracker's errors by phase of the step, from toywalk accuracy on renders of "
-                        "this walker filmed alike: their bias is removed and the SDs widened, so that "
+                        "this walker filmed alike: carried as errors shared by phase and wider SDs "
+                        "(the values left as tracked), so that "
                         "fit and diagnose take them for errors, not physics (default: not carried)")
     p.add_argument("--full-search", action="store_true",
                    help="search the whole frame every time instead of around predicted markers (slower)")
