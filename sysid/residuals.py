@@ -123,9 +123,14 @@ def _components(obs: Observations, residuals: np.ndarray) -> dict:
     return out
 
 
+def _phase_bin(phase: np.ndarray, bins: int) -> np.ndarray:
+    """Each sample's bin of ``bins`` equal bins of the step phase (a phase of 1 in the last)."""
+    return np.minimum((phase * bins).astype(int), bins - 1)
+
+
 def _step_bin_means(obs: Observations, residuals: np.ndarray, sel: np.ndarray, bins: int) -> np.ndarray:
     """Mean residual of each (step, phase bin), shape (n_steps, bins), NaN where empty."""
-    b = np.minimum((obs.phase[sel] * bins).astype(int), bins - 1)
+    b = _phase_bin(obs.phase[sel], bins)
     k = obs.step[sel]
     total = np.zeros((obs.n_steps, bins))
     count = np.zeros((obs.n_steps, bins))
@@ -167,7 +172,7 @@ def shared_errors(obs: Observations, bins: int | None = None) -> sp.csr_matrix:
     whole (:meth:`toywalk.sysid.fitresult.FitResult` standard errors). Empty columns where the file
     gives no ``*_phase_sd``."""
     bins = phase_bins(obs) if bins is None else int(bins)
-    b = np.minimum((obs.phase * bins).astype(int), bins - 1)
+    b = _phase_bin(obs.phase, bins)
     foot = (obs.stance[obs.step] == "R").astype(int)
     cell = (obs.signal * 2 + foot) * bins + b
     loads = sp.csr_matrix((obs.phase_sd, (np.arange(len(cell)), cell)),
