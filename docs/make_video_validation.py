@@ -5,7 +5,7 @@ For a walker, its gait is walked 16 steps (``toywalk simulate``), once with a li
 strength that moves the gait by a few noise SDs and once with nothing hidden; each walk is rendered
 at the README's settings (``render --fps 120 --noise 1``) with seeds 0, 1, ... and tracked twice:
 as it comes (``track``) and with the tracker's errors carried (what ``track --accuracy`` writes,
-from ``toywalk accuracy --like`` on three renders of the walker's own gait with other seeds, made
+from ``toywalk accuracy --like`` on five renders of the walker's own gait with other seeds, made
 once).
 Each track is analysed with ``diagnose``'s defaults. A row per walk and track: the verdict, the
 cause named, the hidden effect's estimate and interval (from the ranking) and whether it holds the
@@ -14,7 +14,7 @@ truth, and the heel strikes' time errors over their ``time_sd`` (RMS, against th
     python docs/make_video_validation.py toy-sized 0 1 2 3 4 --work /tmp/video
 
 writes ``docs/video_WALKER.csv`` (appending to the rows of other seeds already there). A walker and
-seed take about four minutes on two cores; the calibration three more, once.
+seed take about four minutes on two cores; the calibration five more, once.
 """
 
 from __future__ import annotations
@@ -110,7 +110,7 @@ def one_walker(walker: str, seeds, work: Path) -> list[dict]:
                 here.mkdir(exist_ok=True)
                 run("render", str(walk), "--params", str(params), "--noise", "1", "--fps", "120",
                     "--seed", str(seed), "--out", str(video))
-            if not accuracy.exists():  # its renders use seeds 100-102, none of the walks'
+            if not accuracy.exists():  # its renders use seeds 100-104, none of the walks'
                 run("accuracy", "--params", str(params), "--like", str(video), "--seed", "100",
                     "--out", str(accuracy))
             for track, extra in (("as tracked", []), ("errors carried", ["--accuracy", str(accuracy)])):

@@ -322,7 +322,7 @@ def walk_variant(params, k: int):
     return params.replace(slope=float(params.slope) * SLOPE_FACTORS[k % len(SLOPE_FACTORS)])
 
 
-def measure_by_rendering(params, folder: str | Path, *, walks: int = 3, steps: int = 16, fps: float = 120.0,
+def measure_by_rendering(params, folder: str | Path, *, walks: int = 5, steps: int = 16, fps: float = 120.0,
                          noise: int = 1, size: tuple[int, int] = (1280, 720), camera=None, layout=None,
                          seed: int = 0, hip_width: float | None = None, engine: str = "scene",
                          progress=None) -> PhaseErrors:

@@ -39,8 +39,9 @@ def register(subparsers) -> None:
                    help="camera JSON with a ramp_pose (default: placed for the walk as render places it)")
     p.add_argument("--markers", default=None,
                    help="marker layout JSON (default: --like's V.markers.json, else the walker's default)")
-    p.add_argument("--walks", type=int, default=3,
-                   help="renders, each with its own noise seed (default 3; about a minute each)")
+    p.add_argument("--walks", type=int, default=5,
+                   help="renders, each with its own noise seed, on ramps 5 and 10 %% either side of the "
+                        "walker's (default 5; about a minute each)")
     p.add_argument("--steps", type=int, default=16, help="steps of each walk (default 16)")
     p.add_argument("--seed", type=int, default=0, help="first render's noise seed (default 0)")
     p.add_argument("--engine", choices=("scene", "mujoco"), default="scene",
