@@ -72,7 +72,7 @@ class Branch:
     events : list of BranchEvent
     status : str
         ``"reached"`` (the end value), ``"stalled"`` (the step length fell below its minimum; the
-        message says where and why), ``"turned back"`` (past a fold, the branch returned below
+        message says where and why), ``"turned back"`` (past a fold, the branch came back past
         the start value) or ``"max_points"``.
     message : str
     planar : bool
@@ -327,7 +327,7 @@ def continue_branch(params: Params, name: str, start: float, end: float, max_poi
         y, tangent = yc, new_tangent
         ds = min(ds_max, ds * (1.5 if its <= 3 else 1.0))
         if (value - start) * direction < -1e-12 * scale:
-            status, message = "turned back", f"the branch returned below {name} = {start:.6g}"
+            status, message = "turned back", f"the branch came back past {name} = {start:.6g}"
             break
     bar.close()
     if status == "max_points":

@@ -17,6 +17,10 @@ the period map (:func:`~toywalk.model.gait.solve_fixed_point`):
   ``pi sqrt(l/g)``: the toy of Coleman & Ruina (1998) steps about every third of its legs' swing
   period, paced by its side-to-side rocking (issue 42).
 
+:func:`follow_in_slope` follows each gait found in the ramp's slope, both ways from the walker's
+own (:func:`~toywalk.model.continuation.continue_branch`, which passes folds): where each family
+exists, where it is stable, and whether two gaits of the catalogue are one family through a fold.
+
 Two gaits are the same when their fixed points, scaled by :func:`state_scale` (rad and rad per
 sqrt(l/g)), differ by at most :data:`SAME_GAIT` in every component and their step times by at most
 :data:`SAME_GAIT` relative. Each gait kept is a fixed point to :data:`FIXED_POINT_TOL` in that
@@ -36,6 +40,7 @@ from collections.abc import Iterator, Sequence
 
 import numpy as np
 
+from .continuation import Branch, BranchPoint, continue_branch
 from .gait import (
     Gait,
     GaitNotFound,
@@ -50,7 +55,8 @@ from .gait import (
 from .parameters import Params
 from .walker import StepFailure, Walker, is_planar_symmetric
 
-__all__ = ["FIXED_POINT_TOL", "SAME_GAIT", "FoundGait", "GaitSearch", "all_gaits"]
+__all__ = ["FIXED_POINT_TOL", "SAME_GAIT", "FoundGait", "GaitSearch", "SlopeFamily", "all_gaits",
+           "follow_in_slope"]
 
 #: A gait returned is a fixed point to this: max |P(z) - z| over the state, angles in rad and rates
 #: in rad per sqrt(l/g) (the issue's 1e-10; Newton stops at 1e-11 and polishes, measured 1e-16 to
@@ -180,6 +186,93 @@ def all_gaits(params: Params, starts: Sequence[tuple[str, np.ndarray]] | None = 
     found.sort(key=lambda f: f.gait.step_time)
     return GaitSearch(gaits=found, starts=tried, converged=converged,
                       seconds=time.perf_counter() - clock)
+
+
+@dataclasses.dataclass
+class SlopeFamily:
+    """One gait of a catalogue followed in slope, down and up from the walker's own.
+
+    Attributes
+    ----------
+    gait : int
+        Its index in the catalogue (:attr:`GaitSearch.gaits`, sorted by step time).
+    down, up : Branch or None
+        The family followed from the walker's slope to the lower and to the upper end (None where
+        the range does not reach that side, or the first step failed: ``why``).
+    why : str
+        Why a side was not followed ("" when both were).
+    joins : int or None
+        The catalogue's gait that this family comes back to at the walker's slope after a fold
+        (a side that turned back, solved at the walker's slope from its last gait), if any: the
+        two are one family.
+    """
+
+    gait: int
+    down: Branch | None
+    up: Branch | None
+    why: str = ""
+    joins: int | None = None
+
+    @property
+    def points(self) -> list[BranchPoint]:
+        """The family's gaits in order along it: the lower side from its far end, the walker's own
+        gait once, then the upper side."""
+        down = self.down.points[::-1] if self.down is not None else []
+        up = self.up.points if self.up is not None else []
+        return down + (up[1:] if down and up else up)
+
+    @property
+    def branches(self) -> list[Branch]:
+        return [b for b in (self.down, self.up) if b is not None]
+
+    def table(self) -> tuple[list[str], np.ndarray]:
+        """(column names, rows) of :attr:`points`, in :meth:`Branch.table`'s columns."""
+        planar = bool(self.branches and self.branches[0].planar)
+        return Branch("slope", self.points, [], "", "", planar).table()
+
+
+def follow_in_slope(params: Params, search: GaitSearch, low: float, high: float,
+                    max_points: int = 60) -> list[SlopeFamily]:
+    """Each gait of ``search`` (found for ``params``) followed in ``slope`` from the walker's own to
+    ``low`` and to ``high`` (rad; ``low <= params.slope <= high``), at most ``max_points`` gaits a
+    side. A side whose first gait does not step is left out, with the reason."""
+    own = float(params.slope)
+    if not (math.isfinite(low) and math.isfinite(high) and low <= own <= high and low < high):
+        raise ValueError(f"the slope range must hold the walker's slope {own:.6g} rad, "
+                         f"got {low:.6g} to {high:.6g}")
+    families = []
+    for i, found in enumerate(search.gaits):
+        sides, why = [], []
+        for end in (low, high):
+            if end == own:
+                sides.append(None)
+                continue
+            try:
+                sides.append(continue_branch(params, "slope", own, end, max_points=max_points,
+                                             z_start=found.gait.fixed_point, planar=found.gait.planar))
+            except GaitNotFound as err:
+                sides.append(None)
+                why.append(f"towards {end:.6g} rad: {str(err).splitlines()[0]}")
+        families.append(SlopeFamily(gait=i, down=sides[0], up=sides[1], why="; ".join(why),
+                                    joins=_rejoined(params, search, i, sides)))
+    return families
+
+
+def _rejoined(params: Params, search: GaitSearch, i: int, sides) -> int | None:
+    """The catalogue's gait (other than ``i``) a side that turned back past a fold reaches at the
+    walker's slope: Newton there from the side's last gait, matched as :func:`all_gaits` matches."""
+    scale = state_scale(params)
+    for branch in sides:
+        if branch is None or branch.status != "turned back":
+            continue
+        try:
+            back = solve_fixed_point(Walker(params, planar=branch.planar), branch.points[-1].fixed_point)
+        except GaitNotFound:
+            continue
+        for j, other in enumerate(search.gaits):
+            if j != i and _same(other.gait, back, scale):
+                return j
+    return None
 
 
 def _candidates(params: Params, walker: Walker, planar: bool, extra, seed: int | None,

@@ -1,5 +1,7 @@
 """``toywalk gait --params P.toml``: find the walker's gait and its stability; with ``--continue
-NAME FROM TO --out TABLE.csv``, follow the gait family in one parameter (table, events and plot)."""
+NAME FROM TO --out TABLE.csv``, follow the gait family in one parameter (table, events and plot);
+with ``--all``, every distinct gait found from many starts, and with ``--out GAITS.csv`` each of
+them followed in slope (table, families and plot)."""
 
 from __future__ import annotations
 
@@ -23,8 +25,15 @@ def register(subparsers) -> None:
     p.add_argument("--json", action="store_true", help="machine-readable output")
     p.add_argument("--continue", dest="continue_", nargs=3, metavar=("NAME", "FROM", "TO"),
                    help="follow the gait family in parameter NAME from FROM to TO")
-    p.add_argument("--points", type=int, default=100, help="with --continue: at most this many gaits")
-    p.add_argument("--out", help="with --continue: table TABLE.csv (plot and events beside it)")
+    p.add_argument("--points", type=int, default=None,
+                   help="with --continue: at most this many gaits (default 100); with --all --out: a "
+                        "side of each family (default 60)")
+    p.add_argument("--out", help="with --continue: table TABLE.csv (plot and events beside it); with "
+                                 "--all: each gait followed in slope, table GAITS.csv (plot and "
+                                 "families beside it)")
+    p.add_argument("--slopes", nargs=2, type=float, metavar=("LOW", "HIGH"),
+                   help="with --all --out: the slope range (rad) to follow each gait over (default "
+                        "half to one and a half times the walker's)")
     p.add_argument("--basin", action="store_true",
                    help="also the basin: radii along eigenvectors and random directions, hand launches")
     p.add_argument("--directions", type=int, default=20, metavar="N",
@@ -63,11 +72,17 @@ def cmd_gait(args) -> int:
 def _all_gaits(args, params) -> int:
     from toywalk.model.gait_search import FIXED_POINT_TOL, SAME_GAIT, all_gaits
 
+    out, low, high, points = _slope_range(args, params)
     search = all_gaits(params, n_random=args.random_starts, seed=args.seed)
     report = {"gaits": [f.summary() for f in search.gaits], "starts": search.starts,
               "converged": search.converged, "seconds": search.seconds,
               "fixed_point_tol": FIXED_POINT_TOL, "same_gait": SAME_GAIT,
               "units": {"step_time": "s", "stride_length": "m", "angles": "rad", "clearance": "m"}}
+    if out is not None and search.gaits:
+        from toywalk.model.gait_search import follow_in_slope
+
+        families = follow_in_slope(params, search, low, high, max_points=points)
+        report["families"] = _write_families(params, search, families, out)
     if args.json:
         json.dump(report, sys.stdout, indent=2, default=float)
         sys.stdout.write("\n")
@@ -81,7 +96,127 @@ def _all_gaits(args, params) -> int:
               f"{math.degrees(row['lean_amplitude']):5.3g}dg {math.degrees(row['steer_amplitude']):5.3g}dg "
               f"{row['max_abs_eigenvalue']:9.4g} {'yes' if row['stable'] else 'no':>6s} "
               f"{1e3 * row['clearance']:6.3g} mm  {row['how']} (+{row['found_from'] - 1} more)")
+    for i, family in enumerate(report.get("families", []), start=1):
+        print(f"gait {i} in slope: {family['summary']}")
+    if out is not None:
+        print(f"-> {out}, {out.with_suffix('.png')}, {out.with_suffix('.json')}" if search.gaits
+              else f"no gait to follow: nothing written to {out}")
     return 0
+
+
+def _slope_range(args, params) -> tuple[Path | None, float, float, int]:
+    """``--all``'s output file, slope range and points a side, checked before the search runs."""
+    if args.out is None:
+        if args.slopes is not None:
+            raise CommandError("--slopes needs --out GAITS.csv (the families are written there)")
+        return None, math.nan, math.nan, 0
+    out = output_path(args.out, (".csv",))
+    own = float(params.slope)
+    low, high = args.slopes if args.slopes is not None else (0.5 * own, 1.5 * own)
+    if not (math.isfinite(low) and math.isfinite(high) and low <= own <= high and low < high):
+        raise CommandError(f"--slopes LOW HIGH must hold the walker's slope {own:.6g} rad, "
+                           f"got {low:g} {high:g}")
+    points = 60 if args.points is None else args.points
+    if points < 2:
+        raise CommandError(f"--points must be >= 2, got {points}")
+    return out, float(low), float(high), points
+
+
+def _family_summary(family) -> str:
+    """Where a gait's family goes in slope: each side's end, its folds and stability changes."""
+    parts = []
+    for side, branch in (("down", family.down), ("up", family.up)):
+        if branch is None:
+            continue
+        events = "; ".join(e.detail for e in branch.events)
+        parts.append(f"{side}: {branch.status} ({branch.message})" + (f"; {events}" if events else ""))
+    if family.joins is not None:
+        parts.append(f"one family with gait {family.joins + 1}, through a fold")
+    if family.why:
+        parts.append(f"not followed {family.why}")
+    return " | ".join(parts) if parts else "not followed"
+
+
+def _write_families(params, search, families, out: Path) -> list[dict]:
+    """Every family's gaits (CSV: a row per gait, its family's number first), each family's ends
+    and events (JSON) and a plot (PNG), written atomically; returns the JSON's families."""
+    import csv
+    import io
+
+    buf = io.StringIO()
+    writer = csv.writer(buf)
+    info = []
+    for family in families:
+        cols, rows = family.table()
+        if buf.tell() == 0:
+            writer.writerow(["gait", *cols])
+        for row in rows:
+            writer.writerow([family.gait + 1, *(repr(float(v)) for v in row)])
+        info.append({"gait": family.gait + 1, "summary": _family_summary(family),
+                     "sides": [{"side": side, "status": b.status, "message": b.message,
+                                "events": [{"kind": e.kind, "value": e.value, "detail": e.detail}
+                                           for e in b.events]}
+                               for side, b in (("down", family.down), ("up", family.up)) if b is not None],
+                     "not_followed": family.why,
+                     "joins": None if family.joins is None else family.joins + 1})
+    outputs = [out, out.with_suffix(".json"), out.with_suffix(".png")]
+    with staged_files(outputs) as (csv_file, json_file, png):
+        csv_file.write_text(buf.getvalue())
+        json_file.write_text(json.dumps({"walker_slope": float(params.slope), "families": info},
+                                        indent=2) + "\n")
+        _plot_families(params, search, families, png)
+    return info
+
+
+def _plot_families(params, search, families, path: Path) -> None:
+    """Step time and max |eigenvalue| against the slope (degrees), a colour per gait of the
+    catalogue: solid where stable, dashed where not; the walker's own slope and its gaits marked,
+    folds as open circles; the legend beside the axes, not on the curves."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    fig, axes = plt.subplots(2, 1, figsize=(7.5, 6.5), sharex=True, layout="constrained")
+    for family in families:
+        colour = f"C{family.gait % 10}"
+        pts = family.points
+        x = np.degrees([p.value for p in pts])
+        t = np.array([p.step_time for p in pts])
+        eig = np.array([p.max_abs_eigenvalue for p in pts])
+        stable = np.array([p.stable for p in pts])
+        for k in range(len(pts) - 1):
+            style = "-" if stable[k] and stable[k + 1] else "--"
+            for ax, y in ((axes[0], eig), (axes[1], t)):
+                ax.plot(x[k:k + 2], y[k:k + 2], style, color=colour, lw=2 if style == "-" else 1)
+        gait = search.gaits[family.gait].gait
+        label = (f"gait {family.gait + 1}: {gait.step_time:.4g} s, "
+                 f"{'stable' if gait.stable else 'unstable'} ({gait.max_abs_eigenvalue:.3g})")
+        for ax, y in ((axes[0], gait.max_abs_eigenvalue), (axes[1], gait.step_time)):
+            ax.plot(math.degrees(params.slope), y, "o", color=colour, ms=7,
+                    label=label if ax is axes[0] else None)
+        for branch in family.branches:
+            for event in branch.events:
+                if event.kind != "fold":
+                    continue
+                j = int(np.argmin(np.abs(x - math.degrees(event.value))))
+                for ax, y in ((axes[0], eig), (axes[1], t)):
+                    ax.plot(x[j], y[j], "o", mfc="none", color=colour, ms=9)
+    axes[0].axhline(1.0, color="k", lw=0.8, ls=":")
+    axes[0].set_yscale("log")
+    axes[0].set_ylabel("step-map max |eigenvalue|")
+    axes[1].set_ylabel("step time (s)")
+    axes[1].set_xlabel("slope (degrees)")
+    for ax in axes:
+        ax.axvline(math.degrees(params.slope), color="0.6", lw=0.8)
+        ax.ticklabel_format(axis="x", useOffset=False)
+    axes[1].yaxis.get_major_formatter().set_useOffset(False)
+    axes[0].set_title("every gait found, followed in slope (solid: stable; dashed: unstable; "
+                      "open circle: fold)", fontsize=9)
+    fig.legend(loc="outside lower center", ncols=2, fontsize=8)
+    fig.savefig(path, dpi=120, format="png")
+    plt.close(fig)
 
 
 def _print_basin(basin: dict, out=None) -> None:
@@ -117,10 +252,11 @@ def _continue(args, params) -> int:
     if args.out is None:
         raise CommandError("--continue needs --out TABLE.csv (the plot is written beside it)")
     out = output_path(args.out, (".csv",))
-    if args.points < 2:
-        raise CommandError(f"--points must be >= 2, got {args.points}")
+    points = 100 if args.points is None else args.points
+    if points < 2:
+        raise CommandError(f"--points must be >= 2, got {points}")
     try:
-        branch = continue_branch(params, name, start, end, max_points=args.points,
+        branch = continue_branch(params, name, start, end, max_points=points,
                                  progress=sys.stderr.isatty())
     except (ParameterError, ValueError) as err:
         raise CommandError(str(err)) from err

@@ -8,7 +8,7 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.optimize import fsolve
 from toywalk.model.gait import find_gait, state_scale
-from toywalk.model.gait_search import FIXED_POINT_TOL, SAME_GAIT, all_gaits
+from toywalk.model.gait_search import FIXED_POINT_TOL, SAME_GAIT, all_gaits, follow_in_slope
 from toywalk.model.parameters import load_params
 from toywalk.model.walker import Walker
 
@@ -143,3 +143,40 @@ def test_bad_input(simplest):
         all_gaits(simplest, n_random=3)
     with pytest.raises(ValueError, match="n_random"):
         all_gaits(simplest, n_random=-1, seed=0)
+
+
+def test_families_in_slope_pass_through_their_gaits(search_3d):
+    """Each gait followed in slope a little either way (follow_in_slope) starts from itself, every
+    gait on it is a fixed point of a fresh walker at its slope, and a side that turns back at a
+    fold comes back to another gait of the catalogue: the clearing toy's two gaits are one family
+    through a fold at 3.34 degrees (docs/gaits.md section 6), the Tinkertoy fit's two likewise (it
+    sits on its fold, docs/effects_study.md)."""
+    params, search = search_3d
+    own = params.slope
+    families = follow_in_slope(params, search, 0.96 * own, 1.04 * own, max_points=40)
+    assert [f.gait for f in families] == list(range(len(search.gaits)))
+    scale = state_scale(params)
+    for family in families:
+        gait = search.gaits[family.gait].gait
+        first = [b.points[0] for b in family.branches]
+        assert first and all(p.value == own and abs(p.step_time - gait.step_time) < 1e-12 for p in first)
+        middle = family.points[len(family.points) // 2]
+        walker = Walker(params.replace(slope=middle.value), planar=gait.planar)
+        active = slice(4, 8) if gait.planar else slice(0, 8)
+        step = walker.step(middle.fixed_point)
+        assert np.max(np.abs((step.z_plus - middle.fixed_point)[active] / scale[active])) < 1e-9
+        assert abs(step.step_time - middle.step_time) < 1e-9 * middle.step_time
+    joined = {(f.gait, f.joins) for f in families if f.joins is not None}
+    if len(search.gaits) == 2:  # clearing toy and tinkertoy: each half of the fold reaches the other
+        assert joined == {(0, 1), (1, 0)}, [f.why or [b.status for b in f.branches] for f in families]
+
+
+def test_simplest_walker_family_loses_stability_where_published(simplest, simplest_search):
+    """Followed up in slope from 0.009, the long-period gait loses stability through a period
+    doubling at 0.0150884 (Garcia et al. 1998: 0.0151; the recomputed boundary of docs/model.md
+    section 7); the continuation locates it to its solver's tolerance."""
+    families = follow_in_slope(simplest, simplest_search, simplest.slope, 0.016, max_points=60)
+    long = next(f for f in families if round(simplest_search.gaits[f.gait].gait.step_time, 4) == LONG_PERIOD)
+    events = [e for e in long.up.events if e.kind == "loses stability"]
+    assert len(events) == 1 and "-1" in events[0].detail
+    assert abs(events[0].value - 0.0150884) < 1e-6
