@@ -307,11 +307,19 @@ def _shared_words(d: Diagnosis) -> str:
     ``track --accuracy``): how much they widen the standard errors and intervals; empty without."""
     widened = {**d.base.shared_widening,
                **{r["effect"]: r["shared_widening"] for r in d.ranking if r.get("shared_widening")}}
-    if not widened:
+    effects = sorted(((r["design_effect"], r["effect"]) for r in d.ranking
+                      if r.get("design_effect", 1.0) > 1.01), reverse=True)
+    if not widened and not effects:
         return ""
-    return (" The file carries errors shared by each phase of the step (`*_phase_sd`): every standard "
-            "error and interval includes them, which widens them (" +
-            ", ".join(f"{n} x{f:.2g}" for n, f in widened.items()) + ").")
+    words = " The file carries errors shared by each phase of the step (`*_phase_sd`)"
+    if widened:
+        words += (": every standard error and interval includes them, which widens them (" +
+                  ", ".join(f"{n} x{f:.2g}" for n, f in widened.items()) + ")")
+    if effects:
+        words += ("; each candidate's score statistic and likelihood ratio are divided by its design effect, "
+                  "what those errors add to chance (largest " +
+                  ", ".join(f"{n} {f:.3g}" for f, n in effects[:3]) + ")")
+    return words + "."
 
 
 def _model_words(model: str) -> str:

@@ -18,8 +18,11 @@ The procedure, and the rule that decides (``alpha`` is the family-wise false-ala
    Bonferroni) and no signal shows a repeated pattern at ``alpha``.
 4. Otherwise **extended fits** of the best-screened candidates (at most :data:`MAX_EXTENDED`), each
    scored by the likelihood ratio against the base with one noise model (the base fit's: a
-   misfit inflates it, which only makes the test conservative), chi-square on one degree of
-   freedom (a 50:50 mixture with zero for a bounded null: Self & Liang 1987, JASA 82:605), and by
+   misfit inflates it, which only makes the test conservative; where the file carries errors
+   shared by phase, divided by the candidate's design effect, Rao & Scott 1981, as its score
+   test's standard error is widened: :func:`toywalk.sysid.score.score_statistics`), chi-square
+   on one degree of freedom (a 50:50 mixture with zero for a bounded null: Self & Liang 1987,
+   JASA 82:605), and by
    **held-out prediction grouped by stride**: the strides are split into two folds (alternate
    strides), each model is fitted on one fold and predicts the other's angles (samples within a
    stride are not independent; strides are). A Savage-Dickey ratio at the null value (Dickey
@@ -333,7 +336,7 @@ def _diagnose(table: TrajectoryTable, params: Params, *, free, effects, paramete
                  else math.log(2.0) + float(special.log_ndtr(-abs(z))))
         ranking.append({"effect": c.name, "kind": c.kind, "score_z": z, "score_p": math.exp(log_p),
                         "score_log_p": log_p, "linear_estimate": c.base + s["step"],
-                        "linear_se": s["se"]})
+                        "linear_se": s["se"], "design_effect": s["inflation"]})
     ranking.sort(key=lambda r: r["score_log_p"])
     seconds["screening"] = time.perf_counter() - lap
     level = alpha / max(k, 1)
@@ -365,7 +368,9 @@ def _diagnose(table: TrajectoryTable, params: Params, *, free, effects, paramete
             continue
         extended[name] = ext
         seconds[name] = ext.seconds
-        lr = base.chi2 - ext.chi2
+        # the errors shared by phase make chi-square's drop larger than chance alone would with
+        # every error its own: divided by the candidate's design effect (score.score_statistics)
+        lr = (base.chi2 - ext.chi2) / row["design_effect"]
         est, se = ext.estimates[name], ext.std[name]
         row.update(fitted=bool(ext.success), status=ext.status, lr=lr,
                    lr_p=lr_p_value(lr, bool(by_name[name].side)), score=lr,

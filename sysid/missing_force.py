@@ -117,7 +117,8 @@ def _dictionary(params, free: list) -> dict:
 
 
 def _screened(table, current: FitResult, names: list, free: list) -> list:
-    """``names`` ranked by their score tests at ``current`` (strongest first), with the z's."""
+    """``names`` ranked by their score tests at ``current`` (strongest first): (name, z, design
+    effect) (:func:`toywalk.sysid.score.score_statistics`)."""
     groups: dict[int, list[str]] = {}
     for name in names:
         groups.setdefault(gait_period(current.params, free + [name]), []).append(name)
@@ -125,23 +126,25 @@ def _screened(table, current: FitResult, names: list, free: list) -> list:
     for group in groups.values():
         scores.update(score_tests(table, current, group))
     z = {n: float(scores[n]["z"]) for n in names}
-    return sorted(((n, z[n]) for n in names), key=lambda nz: -abs(nz[1]) if math.isfinite(nz[1]) else 0.0)
+    return sorted(((n, z[n], float(scores[n]["inflation"])) for n in names),
+                  key=lambda t: -abs(t[1]) if math.isfinite(t[1]) else 0.0)
 
 
 def _fitted(table, current: FitResult, tried: list, free: list, sides: dict, pool: FitPool,
             options: dict) -> list:
-    """Each of ``tried`` (name, score z) fitted added to ``current``: rows with the likelihood
-    ratio and its p-value (``fit`` the FitResult), or ``fitted`` False and the reason."""
+    """Each of ``tried`` (name, score z, design effect) fitted added to ``current``: rows with the
+    likelihood ratio (divided by the design effect, as in the diagnosis) and its p-value (``fit``
+    the FitResult), or ``fitted`` False and the reason."""
     tasks = [dict(table=table, params=current.params, free=free + [n], check_jacobian=False, warm=current,
-                  **options) for n, _ in tried]
+                  **options) for n, *_ in tried]
     rows = []
-    for (name, z), ext in zip(tried, run_fits(tasks, pool), strict=True):
+    for (name, z, design_effect), ext in zip(tried, run_fits(tasks, pool), strict=True):
         row = {"parameter": name, "score_z": z}
         if isinstance(ext, str) or not ext.success or name in ext.undetermined:
             why = ext if isinstance(ext, str) else (ext.status if not ext.success else "not determined")
             row.update(lr=math.nan, lr_p=math.nan, fitted=False, reason=why)
         else:
-            lr = current.chi2 - ext.chi2
+            lr = (current.chi2 - ext.chi2) / design_effect
             row.update(lr=lr, lr_p=lr_p_value(lr, bool(sides[name])), fitted=True, fit=ext)
         rows.append(row)
     return rows
@@ -165,7 +168,7 @@ def discover(table, base: FitResult, free, *, alpha: float, pool: FitPool, noise
             break
         say(f"missing force, step {step}: screening {len(movable)} port terms")
         tried = _screened(table, current, list(movable), free + selected)[:FITTED]
-        say(f"missing force, step {step}: fitting {', '.join(n for n, _ in tried)}")
+        say(f"missing force, step {step}: fitting {', '.join(n for n, *_ in tried)}")
         rows = _fitted(table, current, tried, free + selected, {n: c.side for n, c in movable.items()}, pool,
                        fit_options)
         record = {"tried": [{k: v for k, v in r.items() if k != "fit"} for r in rows]}

@@ -65,7 +65,7 @@ from .residuals import NOISE_INFLATION, scatter_noise, shared_errors
 __all__ = ["CONTACT_KEYS", "MODELS", "STAGE_PATH", "FitError", "FitProblem", "check_request", "contact_sigma",
            "continued", "estimates_only", "fit_bounds", "fit_line", "gait_period", "ipopt_options",
            "parameter_bounds", "setup", "shared_covariance", "sigma_from", "stacked", "tied",
-           "with_values"]
+           "whitened_loads", "with_values"]
 
 #: The models of a walk :func:`toywalk.sysid.fit.fit` knows.
 MODELS = ("periodic", "transient")
@@ -1009,12 +1009,24 @@ def shared_covariance(cov: np.ndarray, jac: np.ndarray, sigma: np.ndarray, loads
     shared. Checked against the spread of least-squares estimates over draws of such errors
     (tests/sysid/test_fit_shared.py)."""
     n = loads.shape[0]
-    q = sp.diags(1.0 / sigma[:n]) @ loads
+    q = whitened_loads(loads, sigma)
     gain = cov @ jac[:n].T
     through = np.asarray((q.T @ gain.T).T)
     white = np.maximum(1.0 - np.asarray(q.multiply(q).sum(axis=1)).ravel(), 0.0)
     tail = cov @ jac[n:].T
     return through @ through.T + (gain * white) @ gain.T + tail @ tail.T
+
+
+def whitened_loads(loads: sp.spmatrix, sigma: np.ndarray, rows: int | None = None) -> sp.csr_matrix:
+    """The shared errors' loadings ``loads`` (the first ``loads.shape[0]`` residuals', rad) over
+    those residuals' SDs ``sigma``: ``Q = diag(1/sigma) L``, so that the whitened errors'
+    covariance is ``diag(1 - q^2) + Q Q^T`` with ``q`` Q's row norms; with ``rows``, padded with
+    zero rows to that many residuals (a prior's or a strike time's row shares nothing)."""
+    n = loads.shape[0]
+    q = sp.csr_matrix(sp.diags(1.0 / sigma[:n]) @ loads)
+    if rows is not None and rows > n:
+        q = sp.csr_matrix(sp.vstack([q, sp.csr_matrix((rows - n, q.shape[1]))]))
+    return q
 
 
 def stacked(shared: Sequence[np.ndarray], nuisance: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
