@@ -332,6 +332,8 @@ def phase_functions(planar: bool, steps_per_tau: int = STEPS_PER_TAU,
         as ``collision`` gives it (relabelled, mirrored, travel at the new contact point, old
         frame), ``ys`` the phase states on the grid (ny, n + 1), ``kc`` the contact constants
         ``(k1, c1, k2, c2, mu)`` (N/m, N s/m) and ``dK`` the projection's kinetic energy change (J).
+        ``start(x, p, c) -> (y0, kc)`` and ``project(y, p) -> (x_plus, dK)``: the map's first and
+        last parts (so ``project(start(x))`` is the strike with no phase at all).
         ``forces(y, p, kc) -> (N, F_t, delta)``: normal forces (2,), tangential forces
         (n_t, 2) and penetrations (2,) at one phase state. ``energy(y, p) -> E``: kinetic plus
         gravitational energy of the free walker (J).
@@ -361,6 +363,8 @@ def phase_functions(planar: bool, steps_per_tau: int = STEPS_PER_TAU,
     return {
         "strike": ca.Function("strike", [xm, pm, cm], [xp, ca.horzcat(y0m, ys), kcm, dk],
                               ["x", "p", "c"], ["x_plus", "ys", "kc", "dK"]),
+        "start": start,
+        "project": project,
         "forces": ca.Function("forces", [fr.y, fr.p, fr.kc],
                               [ca.vertcat(*normals), ca.horzcat(*tangentials), fr.delta],
                               ["y", "p", "kc"], ["N", "F_t", "delta"]),
