@@ -85,10 +85,11 @@ from functools import cache
 import casadi as ca
 import numpy as np
 
-from .equations import layout, mirror_relabel, symbolic
-from .parameters import Params
+from .effects.soft import FRICTION, ZETA
+from .equations import build_functions, layout, mirror_relabel, symbolic
+from .parameters import N_INPUT, Params, view
 
-__all__ = ["CompliantStrike", "SoftContact", "compliant_strike", "phase_functions"]
+__all__ = ["CompliantStrike", "SoftContact", "compliant_strike", "phase_functions", "step_functions"]
 
 #: The phase's default length in contact time constants after touchdown. A critically damped
 #: landing settles as (1 + t / tau) exp(-t / tau): 5e-4 of its touchdown rate is left after 10 tau.
@@ -292,9 +293,10 @@ def _start(fr: _Free, lay) -> tuple[ca.SX, ca.SX, ca.SX, ca.SX]:
     return x, c, y0, kc
 
 
-def _projection(fr: _Free, lay) -> tuple[ca.SX, ca.SX]:
-    """The rolling model's state (relabelled, mirrored) from the phase's end state, and the
-    kinetic energy change of the plastic projection (J, <= 0)."""
+def _projection(fr: _Free, lay) -> tuple[ca.SX, ca.SX, ca.SX]:
+    """The rolling model's state (relabelled, mirrored) from the phase's end state, the kinetic
+    energy change of the plastic projection (J, <= 0) and its impulse's normal component at the
+    landing foot (N s)."""
     comps = _tangential(fr.planar)
     n_x = len(comps) + 1
     rows = [0, 2] if fr.planar else [0, 1, 2]
@@ -306,7 +308,7 @@ def _projection(fr: _Free, lay) -> tuple[ca.SX, ca.SX]:
     d_kinetic = 0.5 * ca.dot(impulse, ca.mtimes(jac, fr.big_u))
     q = fr.big_q[n_x:]
     x_plus = ca.vertcat(mirror_relabel(lay, q, u_after[n_x:]), fr.foot2[comps])
-    return x_plus, d_kinetic
+    return x_plus, d_kinetic, impulse[-1]
 
 
 @cache
@@ -342,18 +344,11 @@ def phase_functions(planar: bool, steps_per_tau: int = STEPS_PER_TAU,
         raise ValueError(f"steps_per_tau and span must be >= 1, got {steps_per_tau!r}, {span!r}")
     lay = layout(planar)
     fr = _free(planar)
-    h = ca.SX.sym("h")
-    rate = ca.Function("rate", [fr.y, fr.p, fr.kc], [_rate(fr)])
-    k1 = rate(fr.y, fr.p, fr.kc)
-    k2 = rate(fr.y + 0.5 * h * k1, fr.p, fr.kc)
-    k3 = rate(fr.y + 0.5 * h * k2, fr.p, fr.kc)
-    k4 = rate(fr.y + h * k3, fr.p, fr.kc)
-    step = ca.Function("rk4", [fr.y, fr.p, fr.kc, h], [fr.y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)])
     n_steps = steps_per_tau * span
-    flow = step.mapaccum("flow", n_steps)
+    flow = _rk4(fr).mapaccum("flow", n_steps)
     x, c, y0, kc = _start(fr, lay)
     start = ca.Function("start", [x, fr.p, c], [y0, kc])
-    x_plus, d_kinetic = _projection(fr, lay)
+    x_plus, d_kinetic, _ = _projection(fr, lay)
     project = ca.Function("project", [fr.y, fr.p], [x_plus, d_kinetic])
     xm, pm, cm = ca.MX.sym("x", lay.nx), ca.MX.sym("p", fr.p.numel()), ca.MX.sym("c", 3)
     y0m, kcm = start(xm, pm, cm)
@@ -369,6 +364,90 @@ def phase_functions(planar: bool, steps_per_tau: int = STEPS_PER_TAU,
                               [ca.vertcat(*normals), ca.horzcat(*tangentials), fr.delta],
                               ["y", "p", "kc"], ["N", "F_t", "delta"]),
         "energy": ca.Function("energy", [fr.y, fr.p], [fr.energy], ["y", "p"], ["E"]),
+    }
+
+
+def _rk4(fr: _Free, sym=ca.SX, opts: dict | None = None) -> ca.Function:
+    """One classical Runge-Kutta step of the phase state, ``rk4(y, p, kc, h) -> y_next``: with
+    ``sym`` SX the rate is expanded in it four times, with MX it is called (and ``opts`` given to
+    it, to the step's too)."""
+    opts = opts or {}
+    rate = ca.Function("rate", [fr.y, fr.p, fr.kc], [_rate(fr)], opts)
+    y, p, kc = (fr.y, fr.p, fr.kc) if sym is ca.SX else (
+        ca.MX.sym("y", fr.y.sparsity()), ca.MX.sym("p", fr.p.sparsity()), ca.MX.sym("kc", 5))
+    h = sym.sym("h")
+    k1 = rate(y, p, kc)
+    k2 = rate(y + 0.5 * h * k1, p, kc)
+    k3 = rate(y + 0.5 * h * k2, p, kc)
+    k4 = rate(y + h * k3, p, kc)
+    return ca.Function("rk4", [y, p, kc, h], [y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)], opts)
+
+
+#: Derivative directions per generated derivative function of the step map's phase: 1 keeps
+#: the generated code to one adjoint of each piece (the 3D walker's x_plus has 10 rows).
+_DIRS = {"max_num_dir": 1}
+
+
+def step_functions(planar: bool, steps_per_tau: int = STEPS_PER_TAU,
+                   span: int = SPAN) -> dict[str, ca.Function]:
+    """The compliant heel strike as the step map uses it (the ``soft_heel`` effect,
+    :mod:`toywalk.model.effects.soft`): functions of the rolling model's state at the heel strike
+    and the parameter input alone, the contact's time constant read from the input
+    (``effects.soft_heel``, > 0) and its damping ratio and friction the effect's constants.
+
+    The phase's ``steps_per_tau * span`` RK4 steps are one step function folded (``fold``), so the
+    generated code holds one step and its derivatives, not ``steps_per_tau * span`` copies.
+
+    Parameters
+    ----------
+    planar : bool
+        The planar reduction.
+    steps_per_tau, span : int
+        As for :func:`phase_functions`.
+
+    Returns
+    -------
+    dict of ca.Function
+        ``soft_strike(x, p) -> (x_plus, T, dE, lambda, K)``: ``x`` the rolling model's internal
+        state at the heel strike (as ``collision`` takes it), ``p`` the parameter input (N_INPUT);
+        ``x_plus`` as ``collision`` gives it; ``T`` the phase's duration (s); ``dE`` the rolling
+        model's energy (kinetic and gravitational with the contact travel) after the strike less
+        that before it (J; the phase's work against gravity included); ``lambda`` the normal
+        impulses at the landing foot (the phase's and the projection's) and at the trailing foot
+        (N s); ``K`` the kinetic energy before the strike (J).
+        ``soft_strike_jac(x, p) -> (x_plus, C_x, C_p)``: with ``x_plus``'s Jacobians by AD.
+    """
+    lay = layout(planar)
+    fr = _free(planar)
+    n_steps = steps_per_tau * span
+    flow = _rk4(fr, ca.MX, _DIRS).fold(n_steps)
+    x, c, y0, kc = _start(fr, lay)
+    start = ca.Function("start", [x, fr.p, c], [y0, kc], _DIRS)
+    x_plus, d_kinetic, normal = _projection(fr, lay)
+    project = ca.Function("project", [fr.y, fr.p], [x_plus, d_kinetic, normal], _DIRS)
+    rolling = build_functions(planar, effects=False)
+    # One symbol for the state and the parameters, so that x_plus's Jacobian with respect to
+    # both is one reverse sweep (nx adjoint directions) rather than forward sweeps over nx +
+    # N_INPUT directions: the generated code holds one adjoint of the RK4 step.
+    xp_in = ca.MX.sym("xp", lay.nx + N_INPUT)
+    xm, pm = xp_in[:lay.nx], xp_in[lay.nx:]
+    tau = view(pm).effects["soft_heel"]
+    y0m, kcm = start(xm, pm, ca.vertcat(tau, ZETA, FRICTION))
+    y_end = flow(y0m, pm, kcm, tau * span / n_steps)
+    xp, _, normal_end = project(y_end, pm)
+    d_energy = rolling["energy"](xp, pm) - rolling["energy"](xm, pm)
+    impulses = ca.vertcat(y_end[-1] + normal_end, y_end[-2])
+    kinetic = rolling["impact"](xm, pm)[2]
+    jac = ca.jacobian(xp, xp_in)
+    x_in, p_in = ca.MX.sym("x", lay.nx), ca.MX.sym("p", N_INPUT)
+    strike = ca.Function("strike", [xp_in], [xp, span * tau, d_energy, impulses, kinetic])
+    strike_jac = ca.Function("strike_jac", [xp_in], [xp, jac[:, :lay.nx], jac[:, lay.nx:]])
+    both = ca.vertcat(x_in, p_in)
+    return {
+        "soft_strike": ca.Function("soft_strike", [x_in, p_in], strike(both),
+                                   ["x", "p"], ["x_plus", "T", "dE", "lambda", "K"]),
+        "soft_strike_jac": ca.Function("soft_strike_jac", [x_in, p_in], strike_jac(both),
+                                       ["x", "p"], ["x_plus", "C_x", "C_p"]),
     }
 
 
