@@ -6,8 +6,9 @@ compliance matters (the brass strips "deform during foot collision in a way that
 essential") is asked here by resolving the strike in time: the walker leaves the rolling model,
 falls on two spring-damper contacts for a short phase, and is handed back to the rolling model with
 the landing foot as stance. This module builds that phase as a map with the signature of the
-rigid ``collision`` (:func:`toywalk.model.equations.build_functions`), so that it can replace it in
-the step map; it is not wired there yet (docs/soft_feet.md).
+rigid ``collision`` (:func:`toywalk.model.equations.build_functions`), and :func:`step_functions`
+the same map as the step map takes it when the ``soft_heel`` effect is on
+(:mod:`toywalk.model.effects.soft`; docs/soft_feet.md section 5).
 
 **Free (floating-base) walker.** Generalised coordinates ``Q = (X, q)``: ``X`` the position of the
 old stance foot's centre O1 in the slope frame S (3 coordinates; the planar system keeps (x, z))

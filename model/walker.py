@@ -215,6 +215,9 @@ class Step:
     impulses : ndarray, shape (2,)
         Normal impulses at the landing and the trailing foot (N s); with ``effects.soft_heel``
         on, integrated over the compliant strike (the landing foot's with the final projection's).
+    strike_phase : float
+        The compliant heel strike's duration (s), part of ``step_time``: 0 for the rigid collision
+        (``effects.soft_heel`` = 0). The heel strike (touchdown) is at ``step_time - strike_phase``.
     dissipated : ndarray, shape (n, n_continuous) or None
         Energy dissipated since the start of the step by each continuous effect
         (:data:`toywalk.model.effects.CONTINUOUS`), at ``times``, when recorded (J).
@@ -229,6 +232,7 @@ class Step:
     side: int = 1
     collision_loss: float = 0.0
     impulses: np.ndarray | None = None
+    strike_phase: float = 0.0
     dissipated: np.ndarray | None = None
     jacobian: np.ndarray | None = None
     jacobian_params: np.ndarray | None = None
@@ -295,11 +299,14 @@ class Walker:
         and refuses a parameter set with effects (benchmarks and null checks).
     compiled : bool
         Use compiled kernels (default) or CasADi's virtual machine.
+    soft_steps_per_tau : int, optional
+        RK4 steps per contact time constant of the compliant heel strike (``effects.soft_heel``
+        > 0; default :data:`toywalk.model.compliant.STEPS_PER_TAU`): a resolution check.
     """
 
     def __init__(self, params: Params, planar: bool = False, steps_per_time_unit: int = 16,
                  max_step_time: float = 20.0, period: int | None = None, effects: bool = True,
-                 compiled: bool = True):
+                 compiled: bool = True, soft_steps_per_tau: int | None = None):
         if not isinstance(params, Params):
             raise TypeError(f"params must be a Params, got {type(params).__name__}")
         if planar and not is_planar_symmetric(params):
@@ -332,7 +339,9 @@ class Walker:
             if others:
                 raise ValueError(f"the soft heel strike (effects.soft_heel) models the seed's walker: "
                                  f"set {', '.join(others)} to their null values")
-            self._soft = soft_heel_kernels(planar, compiled)
+            if soft_steps_per_tau is not None and soft_steps_per_tau < 1:
+                raise ValueError(f"soft_steps_per_tau must be >= 1, got {soft_steps_per_tau!r}")
+            self._soft = soft_heel_kernels(planar, compiled, soft_steps_per_tau)
         self.lay = self.eng.lay
         self.dt = params.time_scale / steps_per_time_unit
         self.max_step_time = max_step_time * params.time_scale
@@ -547,6 +556,7 @@ class Walker:
             raise StepFailure("no_heel_strike", "the heel-strike time did not converge")
         x_t = xt.ravel().copy()
         step_time = strike_time = hit * dt + tau
+        strike_phase = 0.0
         if self._soft is None:
             x_plus = k["collision"](x_t, p)[0].ravel().copy()
             d_kinetic, impulses, kinetic = (a.ravel().copy() for a in k["impact"](x_t, p))
@@ -555,7 +565,8 @@ class Walker:
             # model's energy (gravity's included) before it less that after it.
             x_plus, phase, d_kinetic, impulses, kinetic = (
                 a.ravel().copy() for a in self._soft["soft_strike"](x_t, p))
-            step_time = strike_time + float(phase[0])
+            strike_phase = float(phase[0])
+            step_time = strike_time + strike_phase
             if not np.all(np.isfinite(x_plus)):
                 raise StepFailure("inadmissible_impact",
                                   "the compliant heel strike's state became non-finite: its contact is "
@@ -576,6 +587,7 @@ class Walker:
             side=side,
             collision_loss=-float(d_kinetic[0]),
             impulses=impulses,
+            strike_phase=strike_phase,
         )
         if record:
             blocks.append(x_t[None, :])
