@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 from toywalk.model import StepFailure, Walker, find_gait, simulate
+from toywalk.model.collocation import solve_collocation
 from toywalk.model.compliant import SPAN, SoftContact, compliant_strike
 from toywalk.model.effects import EFFECTS, LIBRARY
 from toywalk.model.effects.soft import FRICTION, ZETA
@@ -37,10 +38,13 @@ def test_soft_heel_is_registered_last_and_not_screened():
     assert all(EFFECTS[name].screened for name in LIBRARY)
 
 
-def test_soft_heel_refuses_other_effects(clearing):
-    params, _ = clearing
+def test_soft_heel_refuses_other_effects_and_collocation(clearing):
+    """The phase models the seed's walker; the collocation transcription the rigid strike."""
+    params, gait = clearing
     with pytest.raises(ValueError, match="hip_damping"):
         Walker(params.replace(**{SOFT: 1e-3, "effects.hip_damping": 1e-4}))
+    with pytest.raises(ValueError, match="soft_heel"):
+        solve_collocation(params.replace(**{SOFT: 1e-3}), gait.fixed_point)
 
 
 @pytest.mark.parametrize("name", ["seed-pointfoot", "stable-toy", "clearing-toy"])
