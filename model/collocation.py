@@ -405,7 +405,15 @@ def solve_collocation(params: Params, z_guess: np.ndarray | None = None, planar:
     -------
     CollocationGait
         ``success`` False (with IPOPT's status) if it did not converge; never raises for that.
+
+    Raises
+    ------
+    ValueError
+        For a walker with ``effects.soft_heel`` on: the transcription's collision is the rigid one.
     """
+    if params.effects.get("soft_heel", 0.0) != 0.0:
+        raise ValueError("solve_collocation models the rigid heel strike: set effects.soft_heel to 0 "
+                         "(the compliant strike is in the shooting step map, toywalk.model.Walker)")
     walker = Walker(params, planar=planar)
     prob = bvp(planar, n_intervals, degree, walker.period)
     p = params.input_vector()

@@ -22,7 +22,7 @@ from .compiled import cached_functions
 from .equations import build_functions, layout
 from .parameters import N_INPUT, view
 
-__all__ = ["CHUNKS", "SCAN", "Engine", "Kernel", "engine", "rk8_step"]
+__all__ = ["CHUNKS", "SCAN", "Engine", "Kernel", "engine", "rk8_step", "soft_heel_kernels"]
 
 #: Samples per call of the scanning kernel (states on the dt grid, guard values).
 SCAN = 32
@@ -235,3 +235,27 @@ def engine(planar: bool, effects: bool = True, compiled: bool = True) -> Engine:
     ``compiled=False`` runs in CasADi's virtual machine (no compile).
     """
     return Engine(planar, effects, compiled)
+
+
+@cache
+def soft_heel_kernels(planar: bool, compiled: bool = True,
+                      steps_per_tau: int | None = None) -> dict[str, Kernel]:
+    """The (cached) kernels of the compliant heel strike that replaces the collision in the step
+    map when the ``soft_heel`` effect is on (:func:`toywalk.model.compliant.step_functions`):
+    ``soft_strike(x, p)`` and ``soft_strike_jac(x, p)``, the contact's time constant an input as
+    every parameter is. A library of their own, compiled the first time a walker with soft feet
+    steps (about 5 s for the 3D walker at -O1), so that the walker's engine does not carry them.
+    ``steps_per_tau``: the phase's RK4 steps per time constant (default
+    :data:`toywalk.model.compliant.STEPS_PER_TAU`).
+    """
+    from .compliant import STEPS_PER_TAU, step_functions
+
+    steps = STEPS_PER_TAU if steps_per_tau is None else steps_per_tau
+
+    def build() -> dict[str, ca.Function]:
+        return {name: _dense(fn) for name, fn in step_functions(planar, steps).items()}
+
+    tag = "soft_heel_" + ("planar" if planar else "walker3d")
+    variant = f"planar={planar}" + ("" if steps == STEPS_PER_TAU else f" steps_per_tau={steps}")
+    fns = cached_functions(tag, variant, build) if compiled else build()
+    return {name: Kernel(fn) for name, fn in fns.items()}

@@ -35,7 +35,7 @@ import casadi as ca
 from .effects import CONTINUOUS, EFFECTS, Context
 from .parameters import N_INPUT, view
 
-__all__ = ["Layout", "Symbolic", "build_functions", "layout", "symbolic"]
+__all__ = ["Layout", "Symbolic", "build_functions", "layout", "mirror_relabel", "symbolic"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -383,8 +383,10 @@ def _collision_exprs(sym: Symbolic) -> dict[str, ca.SX]:
                 normal_impulses=ca.vertcat(lead, trail))
 
 
-def _mirror_relabel(lay: Layout, q: ca.SX, u_plus: ca.SX) -> ca.SX:
-    """New dynamic state after relabel (swap legs) and mirror (y -> -y: phi, psi negated)."""
+def mirror_relabel(lay: Layout, q: ca.SX, u_plus: ca.SX) -> ca.SX:
+    """New dynamic state after relabel (swap legs) and mirror (y -> -y: phi, psi negated), from the
+    configuration ``q`` and the post-collision speeds ``u_plus`` in the old labels (docs/model.md
+    section 4)."""
     if lay.planar:
         return ca.vertcat(q[1], q[0], u_plus[1], u_plus[0])
     return ca.vertcat(-q[0], -q[1], q[3], q[2], -u_plus[0], -u_plus[1], u_plus[3], u_plus[2])
@@ -425,7 +427,7 @@ def build_functions(planar: bool, effects: bool = True) -> dict[str, ca.Function
     heading = ca.vertcat(ca.cos(phi), ca.sin(phi), 0)
     guard = ca.vertcat(e["c2"][2], ca.dot(heading, e["c2"]))
     coll = _collision_exprs(sym)
-    new_dyn = _mirror_relabel(lay, q, coll["u_plus"])
+    new_dyn = mirror_relabel(lay, q, coll["u_plus"])
     c2xy = e["c2"][0] if planar else e["c2"][:2]
     x_plus = ca.vertcat(new_dyn, travel + c2xy)
     points = ca.horzcat(

@@ -183,10 +183,14 @@ def simulate(params: Params, z0: np.ndarray, steps: int, sample_rate: float | No
         swing_clearance = min(swing_clearance, step.swing.minimum)
         losses.append(step.collision_loss)
         dissipated += step.dissipated[-1]
+        # The heel strike is the landing foot's touchdown: with a compliant strike
+        # (effects.soft_heel) its phase follows it, and the samples inside the phase hold the
+        # rolling model's state after it (the next step's first).
+        touchdown = t0 + (step.step_time - step.strike_phase)
         t0 += step.step_time
         origin = origin + np.array([step.contact[0], sign * step.contact[1]])
         landing = "R" if stance == "L" else "L"
-        events.append(HeelStrike(time=t0, foot=landing, x=float(origin[0]), y=float(origin[1])))
+        events.append(HeelStrike(time=touchdown, foot=landing, x=float(origin[0]), y=float(origin[1])))
         sign = -sign
         z = step.z_plus
     if chunks_t:

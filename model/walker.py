@@ -19,9 +19,10 @@ import math
 
 import numpy as np
 
+from .compliant import SPAN
 from .effects import CONTINUOUS, EFFECTS
-from .engine import SCAN, engine
-from .parameters import N_PARAMS, Params
+from .engine import SCAN, engine, soft_heel_kernels
+from .parameters import N_PARAMS, PARAMETER_NAMES, Params
 
 __all__ = ["CLEARANCE_RESOLUTION", "STATE_NAMES", "Cycle", "Step", "StepFailure", "SwingClearance",
            "Walker", "describe_scuffs"]
@@ -47,6 +48,8 @@ CLEARANCE_RESOLUTION = 10 * _PASS_TOL
 # The swing foot must start at least this far (relative to the leg length) behind the stance foot:
 # legs together (a zero-length step) is a trivial fixed point of the step map, not a gait.
 _START_GAP = 1e-6
+# The contact time constant's place in the parameter vector (the phase's duration is SPAN times it).
+_SOFT_HEEL = PARAMETER_NAMES.index("effects.soft_heel")
 # Admissible collision: kinetic energy may not grow by more than round-off (relative to the
 # kinetic energy before), and no normal impulse may pull (relative to the total).
 _IMPACT_RTOL = 1e-12
@@ -175,7 +178,8 @@ class Step:
     z_plus : ndarray, shape (8,)
         State just after the next heel strike, relabelled and mirrored (public order).
     step_time : float
-        Duration of the step (s).
+        Duration of the step (s): with ``effects.soft_heel`` on, the flow to the heel strike and
+        the compliant strike's phase (toywalk.model.effects.soft).
     z_minus : ndarray, shape (8,)
         State just before the heel strike (not mirrored, old labels).
     contact : ndarray, shape (2,)
@@ -201,13 +205,19 @@ class Step:
     time_gradient_params : ndarray, shape (N_PARAMS,) or None
         d step_time / dp when requested.
     times, states : ndarray, shapes (n,), (n, nx) or None
-        Samples of the internal state on the integration grid, with the end state, when requested.
+        Samples of the internal state on the integration grid, with the state at the heel strike
+        (``z_minus``) last, when requested.
     side : int
         +1 when the physical left leg was in stance (z0 is the physical state), -1 for the right.
     collision_loss : float
-        Kinetic energy lost in the heel strike (J, >= 0).
+        Kinetic energy lost in the heel strike (J, >= 0); with ``effects.soft_heel`` on, the
+        rolling model's energy (kinetic and gravitational) lost over the compliant strike.
     impulses : ndarray, shape (2,)
-        Normal impulses at the landing and the trailing foot (N s).
+        Normal impulses at the landing and the trailing foot (N s); with ``effects.soft_heel``
+        on, integrated over the compliant strike (the landing foot's with the final projection's).
+    strike_phase : float
+        The compliant heel strike's duration (s), part of ``step_time``: 0 for the rigid collision
+        (``effects.soft_heel`` = 0). The heel strike (touchdown) is at ``step_time - strike_phase``.
     dissipated : ndarray, shape (n, n_continuous) or None
         Energy dissipated since the start of the step by each continuous effect
         (:data:`toywalk.model.effects.CONTINUOUS`), at ``times``, when recorded (J).
@@ -222,6 +232,7 @@ class Step:
     side: int = 1
     collision_loss: float = 0.0
     impulses: np.ndarray | None = None
+    strike_phase: float = 0.0
     dissipated: np.ndarray | None = None
     jacobian: np.ndarray | None = None
     jacobian_params: np.ndarray | None = None
@@ -288,11 +299,14 @@ class Walker:
         and refuses a parameter set with effects (benchmarks and null checks).
     compiled : bool
         Use compiled kernels (default) or CasADi's virtual machine.
+    soft_steps_per_tau : int, optional
+        RK4 steps per contact time constant of the compliant heel strike (``effects.soft_heel``
+        > 0; default :data:`toywalk.model.compliant.STEPS_PER_TAU`): a resolution check.
     """
 
     def __init__(self, params: Params, planar: bool = False, steps_per_time_unit: int = 16,
                  max_step_time: float = 20.0, period: int | None = None, effects: bool = True,
-                 compiled: bool = True):
+                 compiled: bool = True, soft_steps_per_tau: int | None = None):
         if not isinstance(params, Params):
             raise TypeError(f"params must be a Params, got {type(params).__name__}")
         if planar and not is_planar_symmetric(params):
@@ -317,6 +331,17 @@ class Walker:
         # Admissibility of the collision is checked where an effect changes the collision law.
         self._check_impact = any(EFFECTS[k].enters == "collision law" for k in params.active_effects)
         self._dissipative = any(k in CONTINUOUS for k in params.active_effects)
+        # The compliant heel strike (effects.soft_heel > 0, toywalk.model.effects.soft) replaces
+        # the collision kernel; at 0 the rigid path below runs, untouched.
+        self._soft = None
+        if params.effects.get("soft_heel", 0.0) > 0.0:
+            others = [name for name in params.active_effects if name != "soft_heel"]
+            if others:
+                raise ValueError(f"the soft heel strike (effects.soft_heel) models the seed's walker: "
+                                 f"set {', '.join(others)} to their null values")
+            if soft_steps_per_tau is not None and soft_steps_per_tau < 1:
+                raise ValueError(f"soft_steps_per_tau must be >= 1, got {soft_steps_per_tau!r}")
+            self._soft = soft_heel_kernels(planar, compiled, soft_steps_per_tau)
         self.lay = self.eng.lay
         self.dt = params.time_scale / steps_per_time_unit
         self.max_step_time = max_step_time * params.time_scale
@@ -396,9 +421,11 @@ class Walker:
         return self.eng.k["points"](x, self._inputs[side])[0].T.copy()
 
     def collide(self, z_minus: np.ndarray, side: int = 1) -> np.ndarray:
-        """Collision, relabel and mirror of a public state just before heel strike; shape (8,)."""
+        """Collision (or the compliant heel strike, with ``effects.soft_heel`` on), relabel and
+        mirror of a public state just before heel strike; shape (8,)."""
         x = self.full_state(z_minus)
-        return self.to_public(self.eng.k["collision"](x, self._inputs[side])[0].ravel())
+        kernel = self.eng.k["collision"] if self._soft is None else self._soft["soft_strike"]
+        return self.to_public(kernel(x, self._inputs[side])[0].ravel())
 
     # --------------------------------------------------------------------------- one step
     def step(self, z0: np.ndarray, jacobian: bool = False, params_jacobian: bool = False,
@@ -528,9 +555,23 @@ class Walker:
         else:
             raise StepFailure("no_heel_strike", "the heel-strike time did not converge")
         x_t = xt.ravel().copy()
-        step_time = hit * dt + tau
-        x_plus = k["collision"](x_t, p)[0].ravel().copy()
-        d_kinetic, impulses, kinetic = (a.ravel().copy() for a in k["impact"](x_t, p))
+        step_time = strike_time = hit * dt + tau
+        strike_phase = 0.0
+        if self._soft is None:
+            x_plus = k["collision"](x_t, p)[0].ravel().copy()
+            d_kinetic, impulses, kinetic = (a.ravel().copy() for a in k["impact"](x_t, p))
+        else:
+            # The compliant phase: its duration adds to the step, and its loss is the rolling
+            # model's energy (gravity's included) before it less that after it.
+            x_plus, phase, d_kinetic, impulses, kinetic = (
+                a.ravel().copy() for a in self._soft["soft_strike"](x_t, p))
+            strike_phase = float(phase[0])
+            step_time = strike_time + strike_phase
+            if not np.all(np.isfinite(x_plus)):
+                raise StepFailure("inadmissible_impact",
+                                  "the compliant heel strike's state became non-finite: its contact is "
+                                  "too stiff for the phase's integration on this walker's feet "
+                                  "(docs/soft_feet.md section 5)")
         if self._check_impact:
             _admissible(float(d_kinetic[0]), impulses, float(kinetic[0]))
         travel = slice(lay.n_dyn, lay.nx)
@@ -546,11 +587,12 @@ class Walker:
             side=side,
             collision_loss=-float(d_kinetic[0]),
             impulses=impulses,
+            strike_phase=strike_phase,
         )
         if record:
             blocks.append(x_t[None, :])
             out.states = np.concatenate(blocks)
-            out.times = np.concatenate([np.arange(hit + 1) * dt, [step_time]])
+            out.times = np.concatenate([np.arange(hit + 1) * dt, [strike_time]])
             out.dissipated = self._dissipated(out.states, out.times, p)
             passing = self._passing(x_pass, t_pass, ahead_pass, p)
             out.swing, out.clearance = self._swing_clearance(out.states, out.times, passing, p)
@@ -689,7 +731,8 @@ class Walker:
         _, s_x, s_tau, s_p = (a.copy() for a in k["final_jac"](x_before, tau, p))
         s_tau = s_tau.ravel()
         _, h_x, h_p = (a.copy().ravel() for a in k["guard_jac"](x_t, p))
-        _, c_x, c_p = (a.copy() for a in k["collision_jac"](x_t, p))
+        strike = k["collision_jac"] if self._soft is None else self._soft["soft_strike_jac"]
+        _, c_x, c_p = (a.copy() for a in strike(x_t, p))
         denom = h_x @ s_tau
         dxt_dx0 = s_x @ phi_x
         dtau_dx0 = -(h_x @ dxt_dx0) / denom
@@ -703,6 +746,8 @@ class Walker:
             # The last input column is the side in stance, not a parameter.
             out.jacobian_params = self._rows_to_public((c_x @ dxt_dp + c_p)[:nd, :N_PARAMS])
             out.time_gradient_params = dtau_dp[:N_PARAMS]
+            if self._soft is not None:  # the phase lasts SPAN time constants
+                out.time_gradient_params[_SOFT_HEEL] += SPAN
 
 
 def _admissible(d_kinetic: float, impulses: np.ndarray, kinetic: float) -> None:

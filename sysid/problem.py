@@ -165,6 +165,10 @@ def _check_free(params: Params, free) -> list[str]:
                            "effects.hip_damping, ...)")
     if len(set(names)) != len(names):
         raise FitError(f"a parameter is named twice in {names}")
+    # The collocation transcription keeps the rigid collision (docs/soft_feet.md section 5).
+    if "effects.soft_heel" in names or params.effects.get("soft_heel", 0.0) != 0.0:
+        raise FitError("cannot fit with effects.soft_heel: the fits' collocation keeps the rigid heel "
+                       "strike; leave it out of the free parameters and at 0 in the base model")
     return names
 
 

@@ -33,18 +33,19 @@ from .hip import (
 )
 from .impact import ImpactLeanArrest, ImpactSpinArrest, ImpactTrailingShare
 from .ports import PORTS, Port
+from .soft import SoftHeel
 
 __all__ = ["COULOMB_SMOOTHING", "CONTINUOUS", "EFFECTS", "LIBRARY", "PORTS", "Arrest", "Context",
            "Effect", "Port", "coulomb_torque"]
 
 # The library's effects, then the port-only terms of the dictionary of generalised forces
 # (:data:`toywalk.model.effects.ports.PORTS`), after them so that the library's parameter and
-# dissipation indices stay where they were.
+# dissipation indices stay where they were; effects added later go at the end for the same reason.
 _UNITS = (HipDamping(), HipCoulomb(), RollingResistance(), PivotFriction(), ImpactTrailingShare(),
           ImpactSpinArrest(), Asymmetry(), CrossSlope(),
           HingeStiffness(), HingeCubicStiffness(), HingeBias(), RollDamping(), RollCoulomb(),
           RollStiffness(), PitchDamping(), PitchCoulomb(), PitchStiffness(), SpinCoulomb(),
-          ImpactLeanArrest())
+          ImpactLeanArrest(), SoftHeel())
 
 #: Registry of effects by name, in the order of the parameter vector.
 EFFECTS: dict[str, Effect] = {e.name: e for e in _UNITS}
@@ -53,5 +54,6 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in _UNITS}
 CONTINUOUS: tuple[str, ...] = tuple(e.name for e in _UNITS if e.continuous)
 
 #: Names of the library's effects proper: the causes the discrepancy analysis tries by default
-#: (the registry less the port-only terms, :attr:`Effect.port_only`).
-LIBRARY: tuple[str, ...] = tuple(e.name for e in _UNITS if not e.port_only)
+#: (the registry less the port-only terms, :attr:`Effect.port_only`, and the effects not screened
+#: by default yet, :attr:`Effect.screened`).
+LIBRARY: tuple[str, ...] = tuple(e.name for e in _UNITS if not e.port_only and e.screened)

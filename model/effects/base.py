@@ -142,6 +142,11 @@ class Effect:
         (:data:`toywalk.model.effects.ports.PORTS`) that is no effect of the library proper: it is
         in the registry and the parameter vector like every effect, but not among the causes the
         discrepancy analysis tries by default.
+    screened : bool
+        False for an effect of the library that the discrepancy analysis does not try by default
+        yet (a new effect whose fit support is incomplete, as ``soft_heel``'s: the collocation
+        transcription keeps the rigid collision). Like a port-only term it stays in the registry
+        and the parameter vector, and can be named explicitly.
     """
 
     name: str = ""
@@ -153,6 +158,7 @@ class Effect:
     breaks_symmetry: bool = False
     physics: str = ""
     port_only: bool = False
+    screened: bool = True
 
     @property
     def continuous(self) -> bool:
@@ -164,7 +170,8 @@ class Effect:
         return {"name": self.name, "unit": self.unit, "null": self.null, "typical": self.typical,
                 "bounds": list(self.bounds), "enters": self.enters,
                 "breaks_symmetry": self.breaks_symmetry, "dissipation_output": self.continuous,
-                "physics": self.physics, "port_only": self.port_only}
+                "physics": self.physics, "port_only": self.port_only,
+                "screened": self.screened}
 
     # ------------------------------------------------------------------------ hooks (neutral)
     def com_offsets(self, k: ca.SX, ctx: Context, d_st: ca.SX, d_sw: ca.SX) -> tuple[ca.SX, ca.SX]:

@@ -27,6 +27,8 @@ def cmd_effects(args) -> int:
         low, high = r["bounds"]
         symmetry = "; breaks the left-right symmetry" if r["breaks_symmetry"] else ""
         port = "; port-only (not a default cause of diagnose)" if r["port_only"] else ""
+        if not r["port_only"] and not r["screened"]:
+            port = "; not screened by diagnose by default yet"
         print(f"{r['name']:<22s} [{r['unit']}] null {r['null']:g}, typical {r['typical']:g}, "
               f"bounds [{low:g}, {high:g}]; enters the {r['enters']}{symmetry}{port}")
         print(f"{'':<22s} {r['physics']}")

@@ -47,6 +47,9 @@ def test_a_fit_says_its_stages_once_the_request_is_checked():
         fit(table, load_params(PARAMS), ["warp"], progress=said.append)
     with pytest.raises(FitError, match="not a parameter"):
         periodicity_test(table, load_params(PARAMS), ["warp"], progress=said.append)
+    # The fits' collocation keeps the rigid heel strike: the compliant one is refused.
+    with pytest.raises(FitError, match="soft_heel"):
+        fit(table, load_params(PARAMS), ["effects.soft_heel"], progress=said.append)
     assert said == []
 
 
