@@ -46,6 +46,7 @@ bench: libraries
 	$(PY) benchmarks/transient_speed.py
 	$(PY) benchmarks/fit_speed.py
 	$(PY) benchmarks/process_start.py
+	$(ONE_THREAD) $(PY) benchmarks/soft_heel_speed.py
 	$(ONE_THREAD) $(PY) benchmarks/sindy_comparison.py
 
 lint: $(STAMP)
