@@ -19,8 +19,9 @@ The procedure, and the rule that decides (``alpha`` is the family-wise false-ala
 4. Otherwise **extended fits** of the best-screened candidates (at most :data:`MAX_EXTENDED`), each
    scored by the likelihood ratio against the base with one noise model (the base fit's: a
    misfit inflates it, which only makes the test conservative; where the file carries errors
-   shared by phase, divided by the candidate's design effect, Rao & Scott 1981, as its score
-   test's standard error is widened: :func:`toywalk.sysid.score.score_statistics`), chi-square
+   shared by phase, divided by the candidate's design effect for its p-value, Rao & Scott 1981,
+   as its score test's standard error is widened: :func:`toywalk.sysid.score.score_statistics`;
+   compared with the others on one scale, the largest design effect fitted), chi-square
    on one degree of freedom (a 50:50 mixture with zero for a bounded null: Self & Liang 1987,
    JASA 82:605), and by
    **held-out prediction grouped by stride**: the strides are split into two folds (alternate
@@ -357,6 +358,10 @@ def _diagnose(table: TrajectoryTable, params: Params, *, free, effects, paramete
     say(f"extended fits: {', '.join(r['effect'] for r in to_fit)}")
     tasks = [dict(table=table, params=base.params, free=free + [row["effect"]], check_jacobian=False,
                   warm=base, **candidate_options, **noise_opt) for row in to_fit]
+    # One scale for the chi-squares the candidates are compared on: the largest design effect of
+    # those fitted (1 with nothing shared), so that their order and gaps stay chi-square's; each
+    # candidate's own design effect for its p-value (score.score_statistics).
+    common = max((r["design_effect"] for r in to_fit), default=1.0)
     for row, ext in zip(to_fit, run_fits(tasks, pool), strict=True):
         name = row["effect"]
         if isinstance(ext, str):
@@ -369,11 +374,12 @@ def _diagnose(table: TrajectoryTable, params: Params, *, free, effects, paramete
         extended[name] = ext
         seconds[name] = ext.seconds
         # the errors shared by phase make chi-square's drop larger than chance alone would with
-        # every error its own: divided by the candidate's design effect (score.score_statistics)
-        lr = (base.chi2 - ext.chi2) / row["design_effect"]
+        # every error its own: divided by a design effect (score.score_statistics)
+        drop = base.chi2 - ext.chi2
+        lr = drop / common
         est, se = ext.estimates[name], ext.std[name]
         row.update(fitted=bool(ext.success), status=ext.status, lr=lr,
-                   lr_p=lr_p_value(lr, bool(by_name[name].side)), score=lr,
+                   lr_p=lr_p_value(drop / row["design_effect"], bool(by_name[name].side)), score=lr,
                    estimate={name: est}, interval={name: [est - 1.96 * se, est + 1.96 * se]},
                    std=se, log_bayes_factor=_savage_dickey(est, se, by_name[name]),
                    shared_widening=ext.shared_widening.get(name),

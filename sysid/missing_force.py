@@ -133,19 +133,22 @@ def _screened(table, current: FitResult, names: list, free: list) -> list:
 def _fitted(table, current: FitResult, tried: list, free: list, sides: dict, pool: FitPool,
             options: dict) -> list:
     """Each of ``tried`` (name, score z, design effect) fitted added to ``current``: rows with the
-    likelihood ratio (divided by the design effect, as in the diagnosis) and its p-value (``fit``
-    the FitResult), or ``fitted`` False and the reason."""
+    likelihood ratio and its p-value (``fit`` the FitResult), or ``fitted`` False and the reason;
+    as in the diagnosis, the ratios are compared on one scale (divided by the largest design
+    effect tried) and each p-value takes its own."""
     tasks = [dict(table=table, params=current.params, free=free + [n], check_jacobian=False, warm=current,
                   **options) for n, *_ in tried]
     rows = []
+    common = max((d for *_, d in tried), default=1.0)
     for (name, z, design_effect), ext in zip(tried, run_fits(tasks, pool), strict=True):
         row = {"parameter": name, "score_z": z}
         if isinstance(ext, str) or not ext.success or name in ext.undetermined:
             why = ext if isinstance(ext, str) else (ext.status if not ext.success else "not determined")
             row.update(lr=math.nan, lr_p=math.nan, fitted=False, reason=why)
         else:
-            lr = (current.chi2 - ext.chi2) / design_effect
-            row.update(lr=lr, lr_p=lr_p_value(lr, bool(sides[name])), fitted=True, fit=ext)
+            drop = current.chi2 - ext.chi2
+            row.update(lr=drop / common, lr_p=lr_p_value(drop / design_effect, bool(sides[name])),
+                       fitted=True, fit=ext)
         rows.append(row)
     return rows
 
