@@ -1,7 +1,7 @@
 """The model's compliant heel strike against MuJoCo's (docs/soft_feet.md, "Against MuJoCo's heel
 strike").
 
-    OPENBLAS_NUM_THREADS=1 MUJOCO_GL=egl .venv/bin/python docs/make_soft_heel_mujoco.py   # about 10 s
+    OPENBLAS_NUM_THREADS=1 MUJOCO_GL=egl .venv/bin/python docs/make_soft_heel_mujoco.py   # about 4 s
 
 The clearing toy (data/params/clearing-toy.toml) at its gait's heel strike (``find_gait``, then
 ``Walker.step(...).z_minus``): the model's compliant strike (model/compliant.py, critically
