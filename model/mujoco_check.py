@@ -47,13 +47,16 @@ import math
 
 import numpy as np
 
+from .compliant import SPAN, STEPS_PER_TAU
+from .effects.soft import FRICTION, ZETA
 from .files import software_version as _version
 from .kinematics import angles_from_rotations, leg_poses, rotation
 from .parameters import PARAMETER_NAMES, Params
 from .trajectory import SIGNALS, TrajectoryTable
 from .walker import STATE_NAMES
 
-__all__ = ["MujocoWalk", "build_mjcf", "initial_state", "mujoco_trajectory", "walk_in_mujoco"]
+__all__ = ["STRIKE_SOLIMP", "MujocoStrike", "MujocoWalk", "build_mjcf", "impact_pulse", "initial_state",
+           "mujoco_trajectory", "strike_differences", "strike_in_mujoco", "walk_in_mujoco"]
 
 # Contacts: the solver's time constant (s), critically damped. 1 ms is a few times shorter than
 # anything the walkers do (steps of 0.1 s and more) and long enough that the heel strike is plastic:
@@ -73,6 +76,14 @@ _OFF_TIME = 2e-3
 # it creeps 15 um sideways and 3 um along in a step of the clearing walker (measured,
 # tests/model/test_mujoco.py).
 _SOLIMP = (0.99, 0.999, 0.0001)
+# The walker is lowered this far (m) at the start of a heel strike in MuJoCo, so that both feet's
+# contacts are on from the start: at zero distance MuJoCo may find none (round-off puts the feet
+# 1e-17 m above the ramp). It is 4e-6 of the clearing toy's landing foot's deepest penetration at
+# tau = 1 ms, and the reference acceleration k r it gives at 1 ms, 1e-3 m/s^2, is 1e-4 g.
+_TOUCH = 1e-9
+#: The heel-strike comparison's impedance (:func:`strike_in_mujoco`): flat (the same d at any
+#: penetration, so MuJoCo's reference spring is exactly ``solref``'s) and near 1.
+STRIKE_SOLIMP = (0.9999, 0.9999, 0.001)
 _SOLVER = {"integrator": "RK4", "cone": "elliptic", "impratio": 10, "noslip_iterations": 10}
 
 
@@ -148,6 +159,19 @@ def _contact_settings(contact_time: float, damping_ratio: float) -> None:
         raise ValueError(f"damping_ratio must be a finite ratio > 0, got {damping_ratio!r}")
 
 
+def _impedance(solimp) -> tuple[float, ...]:
+    """A valid ``solimp`` (3 or 5 numbers: 0 < d0, d_width < 1, width > 0), or ValueError."""
+    try:
+        values = tuple(float(v) for v in solimp)
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"solimp must be 3 or 5 numbers, got {solimp!r}") from err
+    if (len(values) not in (3, 5) or not all(math.isfinite(v) for v in values)
+            or not all(0.0 < d < 1.0 for d in values[:2]) or not values[2] > 0.0):
+        raise ValueError(f"solimp must be (d0, d_width, width[, midpoint, power]) with 0 < d < 1 and "
+                         f"width > 0 (m), got {solimp!r}")
+    return values
+
+
 def _leg_inertial(params: Params, mirror: bool, with_axle: bool) -> tuple[float, np.ndarray, np.ndarray]:
     """(mass, centre of mass, inertia tensor about it), in the leg's body frame (kg, m, kg m^2)."""
     d = np.array(params.com_offset, dtype=float)
@@ -170,7 +194,7 @@ def _leg_inertial(params: Params, mirror: bool, with_axle: bool) -> tuple[float,
 
 def build_mjcf(params: Params, timestep: float = 1e-4, friction: float = 2.0,
                contact_time: float = _CONTACT_TIME, damping_ratio: float = 1.0,
-               foot_axes=None, foot_pitch: float = 0.0) -> str:
+               foot_axes=None, foot_pitch: float = 0.0, solimp=None) -> str:
     """The MuJoCo model of ``params`` (MJCF text; see the module's docstring).
 
     Parameters
@@ -195,6 +219,9 @@ def build_mjcf(params: Params, timestep: float = 1e-4, friction: float = 2.0,
         The ellipsoid turned about the axle by this angle (rad), its lowest point with the leg
         upright kept ``leg_length`` below the hip: with ``a != c`` a foot whose fore-aft radius of
         curvature grows along the rim one way and shrinks the other.
+    solimp : sequence of 3 or 5 floats, optional
+        The contacts' impedance (MuJoCo's ``solimp``: d at zero penetration, d at ``width`` and
+        beyond, ``width`` (m)[, midpoint, power]); default the walking build's (0.99, 0.999, 0.1 mm).
     """
     if params.active_effects:
         raise ValueError(f"the MuJoCo walker has no effects; the parameter set has {params.active_effects}")
@@ -216,6 +243,7 @@ def build_mjcf(params: Params, timestep: float = 1e-4, friction: float = 2.0,
     foot = (f'type="ellipsoid" size="{a!r} {b!r} {c!r}" pos="0 0 {centre!r}"{turn} contype="1" '
             f'conaffinity="0" condim="3" friction="{friction!r} 0 0" mass="0"')
     _contact_settings(contact_time, damping_ratio)
+    impedance = _impedance(_SOLIMP if solimp is None else solimp)
     if not 4 * timestep <= contact_time:
         raise ValueError(f"timestep must be at most a quarter of the contact time constant "
                          f"{contact_time} s, got {timestep}")
@@ -223,7 +251,7 @@ def build_mjcf(params: Params, timestep: float = 1e-4, friction: float = 2.0,
     return f"""<mujoco model="toywalk">
   <compiler angle="radian"/>
   <option timestep="{timestep!r}" gravity="{grav[0]!r} {grav[1]!r} {grav[2]!r}" {solver}/>
-  <default><geom solref="{contact_time!r} {damping_ratio!r}" solimp="{_num(_SOLIMP)}"/></default>
+  <default><geom solref="{contact_time!r} {damping_ratio!r}" solimp="{_num(impedance)}"/></default>
   <worldbody>
     <geom name="ramp" type="plane" size="0 0 1" contype="0" conaffinity="1" condim="3"
           friction="{friction!r} 0 0"/>
@@ -580,3 +608,218 @@ def mujoco_trajectory(walk: MujocoWalk, params: Params, parameters: str | None =
         "software": _version(),
     }
     return TrajectoryTable(walk.times, signals, walk.stance, events, metadata)
+
+
+@dataclasses.dataclass
+class MujocoStrike:
+    """One heel strike in MuJoCo (:func:`strike_in_mujoco`), sampled as the model's compliant strike
+    (:class:`toywalk.model.compliant.CompliantStrike`) is: foot 1 is the trailing foot (the left,
+    in stance before the strike), foot 2 the landing one (the right); time series are
+    (n_times, n_signals), n = ``steps_per_tau * span``.
+
+    Attributes
+    ----------
+    times : ndarray, shape (n + 1,)
+        Sample times from touchdown (s).
+    normal_forces : ndarray, shape (n + 1, 2)
+        Each foot's normal contact force (N; MuJoCo's ``mj_contactForce``, 0 without a contact).
+    penetrations : ndarray, shape (n + 1, 2)
+        Each foot's penetration: minus its lowest point's height over the ramp (m, negative when
+        off it).
+    angles : ndarray, shape (n + 1, 4)
+        Lean, steer, pitch_left, pitch_right (rad; columns :data:`~toywalk.model.trajectory.SIGNALS`),
+        read from the legs' frames by :func:`~toywalk.model.kinematics.angles_from_rotations`.
+    rates : ndarray, shape (n + 1, 4)
+        Their rates (rad/s), from the left leg's angular velocity and the hinge's rate.
+    settings : dict
+        MuJoCo's version and the settings of the strike (timestep, solref, solimp, friction, solver).
+    """
+
+    times: np.ndarray
+    normal_forces: np.ndarray
+    penetrations: np.ndarray
+    angles: np.ndarray
+    rates: np.ndarray
+    settings: dict
+
+
+def strike_in_mujoco(params: Params, z_minus: np.ndarray, tau: float, zeta: float = ZETA,
+                     friction: float = FRICTION, solimp=STRIKE_SOLIMP, substeps: int = 20,
+                     steps_per_tau: int = STEPS_PER_TAU, span: int = SPAN) -> MujocoStrike:
+    """One heel strike in MuJoCo from the model's state at touchdown, sampled as the model's
+    compliant strike (:func:`toywalk.model.compliant.compliant_strike`) is, for comparing the two
+    (:func:`strike_differences`; docs/soft_feet.md, "Against MuJoCo's heel strike").
+
+    MuJoCo starts from the rolling model's state at the heel strike (left leg in stance, its foot's
+    lowest point at the origin and at rest, the right foot's lowest point on the ramp and moving
+    into it; :func:`initial_state`), with both feet's contacts on, ``solref = (tau, zeta)`` and
+    the impedance ``solimp``, and runs for ``span`` time constants. The start is the model's
+    touchdown: the landing foot's contact is at zero distance there, so MuJoCo's force jumps at
+    t = 0, on its integration grid, as the model's does. Each sample is taken by ``mj_forward`` at
+    the state after a step (forces, contacts and penetrations of that state, not of the last RK4
+    stage).
+
+    The two contact laws differ, whatever ``solimp``: MuJoCo's contact is a constraint whose
+    acceleration obeys ``a_1 + d (b v + k r) = (1 - d) a_0`` (a_0 the acceleration without it,
+    r the signed distance, ``b = 2 / (d_max tau)``, ``k = d(r) / (d_max tau zeta)^2``), solved
+    jointly for both feet with the regulariser ``R = (1 - d) / d`` times MuJoCo's approximate
+    diagonal of ``J M^-1 J'``. With d flat (d(r) = d_max) and near 1 (the default
+    :data:`STRIKE_SOLIMP`), each foot's penetration follows the model's critically damped law in
+    acceleration, so the force is the model's ``m_eff (k delta + b d(delta)/dt)`` plus
+    ``-m_eff a_0`` (the force that cancels the rest of the walker's pull on the contact, gravity
+    and the other foot's push), with ``m_eff`` the exact, current, coupled effective mass; the
+    stance foot holds the weight at ``(1 - d) / d`` of the model's preload penetration.
+
+    Parameters
+    ----------
+    params : Params
+        A walker without effects, round feet.
+    z_minus : ndarray, shape (8,)
+        The public state at the heel strike, left leg in stance (``Walker.step(z0).z_minus`` of a
+        state just after a left heel strike); the model's strike takes ``Walker.full_state`` of it.
+    tau : float
+        The contacts' time constant (s; ``solref[0]``, :class:`~toywalk.model.compliant.SoftContact`).
+    zeta : float
+        Their damping ratio (``solref[1]``).
+    friction : float
+        Sliding friction coefficient (default the ``soft_heel`` effect's constant).
+    solimp : sequence of 3 or 5 floats
+        MuJoCo's impedance (:func:`build_mjcf`).
+    substeps : int
+        MuJoCo's integration steps per sample: its timestep is ``tau / (steps_per_tau * substeps)``.
+    steps_per_tau, span : int
+        Samples per time constant and the phase's length in time constants (the model's defaults).
+
+    Returns
+    -------
+    MujocoStrike
+    """
+    mujoco = _require_mujoco()
+    z_minus = np.asarray(z_minus, dtype=float)
+    if z_minus.shape != (8,) or not np.all(np.isfinite(z_minus)):
+        raise ValueError(f"z_minus must be a finite state of 8 components, got {z_minus!r}")
+    _contact_settings(tau, zeta)
+    for name, value in (("substeps", substeps), ("steps_per_tau", steps_per_tau), ("span", span)):
+        if not (isinstance(value, int) and value >= 1):
+            raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+    timestep = tau / (steps_per_tau * substeps)
+    sole = _foot(params)
+    model = mujoco.MjModel.from_xml_string(
+        build_mjcf(params, timestep, friction, tau, zeta, solimp=solimp))
+    data = mujoco.MjData(model)
+    data.qpos[:], data.qvel[:] = initial_state(params, z_minus)
+    data.qpos[2] -= _TOUCH  # both feet touching: the contacts are on from the start
+    feet = (model.geom("left_foot").id, model.geom("right_foot").id)
+    bodies = (model.body("left").id, model.body("right").id)
+    out = np.zeros(6)
+    rows = []
+
+    def sample() -> None:
+        mujoco.mj_forward(model, data)
+        force = [0.0, 0.0]
+        for i in range(data.ncon):
+            for k, geom in enumerate(feet):
+                if geom in data.contact.geom[i]:
+                    mujoco.mj_contactForce(model, data, i, out)
+                    force[k] += out[0]
+        rot = [data.xmat[b].reshape(3, 3) for b in bodies]
+        depth = [-(_foot_position(data, model, b, params, sole) + _lowest_offset(params, r, sole))[2]
+                 for b, r in zip(bodies, rot, strict=True)]
+        steer, lean, pitch_left, pitch_right = angles_from_rotations(*rot)
+        omega = rot[0] @ data.qvel[3:6]  # the left leg's angular velocity, ramp frame
+        axes = np.column_stack([[0.0, 0.0, 1.0], rotation(steer, 0.0, 0.0)[:, 0],
+                                rotation(steer, lean, 0.0)[:, 1]])
+        steer_rate, lean_rate, left_rate = np.linalg.solve(axes, omega)
+        rows.append((data.time, *force, *depth, lean, steer, pitch_left, pitch_right,
+                     lean_rate, steer_rate, left_rate, left_rate + data.qvel[6]))
+
+    sample()
+    for _ in range(steps_per_tau * span):
+        for _ in range(substeps):
+            mujoco.mj_step(model, data)
+        sample()
+    table = np.array(rows)
+    settings = {"engine": f"MuJoCo {mujoco.__version__}", "timestep": timestep, "friction": friction,
+                "solref": [tau, zeta], "solimp": list(_impedance(solimp)), **_SOLVER, "condim": 3}
+    return MujocoStrike(times=table[:, 0], normal_forces=table[:, 1:3], penetrations=table[:, 3:5],
+                        angles=table[:, 5:9], rates=table[:, 9:13], settings=settings)
+
+
+# Columns of the compliant strike's phase states (toywalk.model.compliant, 3D: X (3), q (4), V (3),
+# u (4), ...; q = (phi, psi, theta_st, theta_sw)) that hold lean, steer, pitch_left, pitch_right
+# and their rates when the left leg is in stance before the strike (side 1: physical frame).
+_PHASE_ANGLES = [4, 3, 5, 6]
+_PHASE_RATES = [11, 10, 12, 13]
+
+
+def impact_pulse(times: np.ndarray, force: np.ndarray) -> float:
+    """The landing impact's duration (s): from the start to the first minimum of the landing foot's
+    normal force after its peak (the first sample from which it stops falling). For a lone mass on
+    the critically damped contact the force ``m v0 (exp(-t / tau) / tau) (2 - t / tau)`` falls to 0
+    at 2 tau (where it leaves, if nothing holds it) and, unclamped, to its minimum at 3 tau.
+
+    Parameters
+    ----------
+    times : ndarray, shape (n,)
+        Sample times from touchdown (s).
+    force : ndarray, shape (n,)
+        The landing foot's normal force (N).
+    """
+    k = int(np.argmax(force))
+    while k + 1 < len(force) and force[k + 1] < force[k]:
+        k += 1
+    return float(times[k])
+
+
+def strike_differences(strike, mujoco_strike: MujocoStrike) -> dict:
+    """The model's compliant heel strike against MuJoCo's, sampled at the same times.
+
+    Parameters
+    ----------
+    strike : toywalk.model.compliant.CompliantStrike
+        The model's strike of the 3D walker, left leg in stance before it (``side`` 1), from
+        ``Walker.full_state(z_minus)``.
+    mujoco_strike : MujocoStrike
+        :func:`strike_in_mujoco` from the same ``z_minus``, ``tau``, ``steps_per_tau`` and ``span``.
+
+    Returns
+    -------
+    dict
+        ``angles_end`` and ``rates_end`` (shape (4,), MuJoCo less the model at the phase's end:
+        lean, steer, pitch_left, pitch_right; rad, rad/s); ``angles_max`` and ``rates_max``, the
+        largest absolute differences through the phase (shape (4,)); for each engine
+        (``"model"``, ``"mujoco"``) a dict of the landing foot's ``peak_force`` (N), its impact
+        ``pulse`` (s; :func:`impact_pulse`), its largest and last ``max_penetration`` and
+        ``end_penetration`` (m), ``unloaded`` (samples after the start at which it carries no
+        load: a rebound or chatter), ``leaves`` (its lowest point above the ramp at some sample
+        after the start), and the trailing foot's ``lift_off`` (s, first sample after the start
+        without load); ``force_rms``, the RMS difference of the landing foot's force through the
+        phase (N).
+
+    Raises
+    ------
+    ValueError
+        Strikes sampled at different times.
+    """
+    if strike.states.shape[1] < 14 or len(strike.times) != len(mujoco_strike.times) or not np.allclose(
+            strike.times, mujoco_strike.times, rtol=0, atol=1e-9 * max(strike.duration, 1e-300)):
+        raise ValueError("the strikes must be of the 3D walker and sampled at the same times "
+                         "(the same tau, steps_per_tau and span)")
+    model_angles = strike.states[:, _PHASE_ANGLES]
+    model_rates = strike.states[:, _PHASE_RATES]
+    d_angles = mujoco_strike.angles - model_angles
+    d_rates = mujoco_strike.rates - model_rates
+
+    def summary(times, force, depth):
+        trailing_off = np.flatnonzero(force[1:, 0] == 0.0)
+        return {"peak_force": float(force[:, 1].max()), "pulse": impact_pulse(times, force[:, 1]),
+                "max_penetration": float(depth[:, 1].max()), "end_penetration": float(depth[-1, 1]),
+                "unloaded": int(np.sum(force[1:, 1] == 0.0)), "leaves": bool(np.any(depth[1:, 1] < 0.0)),
+                "lift_off": float(times[1 + trailing_off[0]]) if len(trailing_off) else math.nan}
+
+    return {"angles_end": d_angles[-1], "rates_end": d_rates[-1],
+            "angles_max": np.abs(d_angles).max(axis=0), "rates_max": np.abs(d_rates).max(axis=0),
+            "model": summary(strike.times, strike.normal_forces, strike.penetrations),
+            "mujoco": summary(mujoco_strike.times, mujoco_strike.normal_forces, mujoco_strike.penetrations),
+            "force_rms": float(np.sqrt(np.mean(
+                (mujoco_strike.normal_forces[:, 1] - strike.normal_forces[:, 1]) ** 2)))}
