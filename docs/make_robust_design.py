@@ -18,7 +18,9 @@ launches come to the gait, and by its basin in random directions:
   principal moments break the triangle inequality, and a lateral foot radius above the fore-aft one).
 - ``rest`` (stages 2-3, no gait needed): the steps a launch from rest walks before it fails, at
   tips of :data:`REST_TIPS` (up to :data:`REST_STEPS` steps each), as a share of the budget,
-  averaged over the tips (0 .. 1). A launch that walks the whole budget ends near an attracting
+  weighted half by whether its last steps still advance (:func:`rest_tip_score`; a first version
+  without that weight bred walkers that rock in place with shrinking steps), averaged over the
+  tips (0 .. 1). A launch that walks the whole budget ends near an attracting
   gait if the walker has one: Newton from its last state finds it, and the design gets the full
   evaluation above.
 
@@ -55,7 +57,13 @@ takes about 1 ms, so a design of stages 2-3 a few ms; stages 1 and 4 about 0.05 
 a stable gait, 1-2 s a feasible one (the basin radii and ``can_stand`` dominate). Run::
 
     OPENBLAS_NUM_THREADS=1 nice -n 10 .venv/bin/python docs/make_robust_design.py \
-        --scan 400 --rest 20000 --rest-budget 900 --budget 600 --maxiter 150 --log L.csv
+        --scan 400 --rest 20000 --rest-budget 900 --budget 480 --maxiter 150 --log L.csv
+    OPENBLAS_NUM_THREADS=1 nice -n 10 .venv/bin/python docs/make_robust_design.py --scan 0 \
+        --slice 21 --rest 20000 --rest-budget 480 --rest-min-margin 0 --spread 0 --maxiter 0 --finalists 0 \
+        --seed 1 --log M.csv
+
+(the second keeps stage 3 to walkers that cannot stand fore and aft on parallel legs, ``Search``,
+after a grid through clearing-toy, :func:`rest_slice`).
 """
 
 from __future__ import annotations
@@ -102,8 +110,13 @@ HI = np.array([BOUNDS[n][1] for n in FREE])
 #: Tips (degrees) and step budget of the gait-free launches from rest of stages 2-3.
 REST_TIPS = (0.5, 1.0, 2.0, 3.0, 4.0)
 REST_STEPS = 80
+#: The last steps whose advance is averaged, and the advance a step (m) that counts as walking on
+#: (the toy's is 6.5 mm, Coleman & Ruina 1998).
+REST_LAST = 10
+REST_ADVANCE = 0.003
 REST_COLUMNS = ["stage", "design", "parent", *FREE, "rest", *(f"steps_{t:g}" for t in REST_TIPS),
-                *(f"reason_{t:g}" for t in REST_TIPS), "fore_aft_margin", "static_margin", "gait",
+                *(f"reason_{t:g}" for t in REST_TIPS), *(f"advance_{t:g}" for t in REST_TIPS),
+                "fore_aft_margin", "static_margin", "gait",
                 "feasible", "why", "score", "seconds"]
 MIN_CLEARANCE = 0.001  # m, issue 44's 1 mm
 #: Tips of the scored launches, as multiples of the gait's lean amplitude (issue 44: 1.5 and 2.5).
@@ -157,20 +170,35 @@ def fore_aft_margin(params) -> float:
     return static_margin(params) + params.foot_lateral_radius - params.foot_radius
 
 
-def rest_walk(walker: Walker, tip: float, steps: int = REST_STEPS) -> tuple[int, str, np.ndarray]:
+def rest_walk(walker: Walker, tip: float, steps: int = REST_STEPS) -> tuple[int, str, np.ndarray, float]:
     """A hand launch (:func:`launch_state`, heading 0) walked without a gait to compare with:
-    (steps walked, why it stopped (``"walking"`` after ``steps``), last post-strike state). A
-    first landing that scuffs fails, as in :func:`hand_launch`."""
-    z, side = launch_state(tip), 1
+    (steps walked, why it stopped (``"walking"`` after ``steps``), last post-strike state, mean
+    advance of the last :data:`REST_LAST` steps (m, down the ramp)). A first landing that scuffs
+    fails, as in :func:`hand_launch`."""
+    z, side, advance = launch_state(tip), 1, []
     for k in range(steps):
         try:
             step = walker.step(z, side=side)
         except StepFailure as err:
-            return k, err.status, z
+            return k, err.status, z, _mean_tail(advance)
         if step.scuffs and k == 0:
-            return k + 1, "scuffed", z
+            return k + 1, "scuffed", z, 0.0
+        advance.append(float(step.contact[0]))
         z, side = step.z_plus, -side
-    return steps, "walking", z
+    return steps, "walking", z, _mean_tail(advance)
+
+
+def _mean_tail(advance: list) -> float:
+    return float(np.mean(advance[-REST_LAST:])) if advance else 0.0
+
+
+def rest_tip_score(walk: tuple) -> float:
+    """A launch from rest's share of the step budget walked, weighted half by itself and half by
+    whether its last steps still advance (their mean advance over :data:`REST_ADVANCE`, at most 1):
+    a walker that rocks in place with shrinking steps for the whole budget scores 0.5, one that
+    walks on 1."""
+    walked = min(walk[0], REST_STEPS) / REST_STEPS
+    return walked * (0.5 + 0.5 * min(1.0, max(0.0, walk[3]) / REST_ADVANCE))
 
 
 def launch_walk(walker: Walker, gait, tip: float, steps: int = LAUNCH_STEPS) -> dict:
@@ -230,7 +258,8 @@ def infeasibility(params, gait, stand: bool = True) -> tuple[float, str]:
 class Search:
     """Evaluates designs, keeps the feasible ones and writes every row to the log."""
 
-    def __init__(self, log: Path):
+    def __init__(self, log: Path, rest_min_margin: float = -math.inf):
+        self.rest_min_margin = rest_min_margin
         self.log = open(log, "w", newline="")  # noqa: SIM115 (closed in close())
         self.writer = csv.writer(self.log)
         self.writer.writerow(COLUMNS)
@@ -264,12 +293,17 @@ class Search:
             return out
         walker = Walker(params)
         walks = [rest_walk(walker, math.radians(t)) for t in REST_TIPS]
-        rest = float(np.mean([min(w[0], REST_STEPS) / REST_STEPS for w in walks]))
+        rest = float(np.mean([rest_tip_score(w) for w in walks]))
         row.update(rest=rest, fore_aft_margin=fore_aft_margin(params), static_margin=static_margin(params),
                    **{f"steps_{t:g}": w[0] for t, w in zip(REST_TIPS, walks, strict=True)},
-                   **{f"reason_{t:g}": w[1] for t, w in zip(REST_TIPS, walks, strict=True)})
+                   **{f"reason_{t:g}": w[1] for t, w in zip(REST_TIPS, walks, strict=True)},
+                   **{f"advance_{t:g}": w[3] for t, w in zip(REST_TIPS, walks, strict=True)})
         out.update(rest=rest, objective=rest)
-        walking = [w[2] for w in walks if w[0] >= REST_STEPS]
+        shortfall = self.rest_min_margin - fore_aft_margin(params)
+        if shortfall > 0:  # below the fore-aft margin asked for: pushed back, continuously
+            out["objective"] = rest - 1.0 - shortfall / 0.01
+            row["why"] = "fore-aft margin"
+        walking = [w[2] for w in walks if w[0] >= REST_STEPS and shortfall <= 0]
         if walking:
             full = self.evaluate(f"{stage} gait", x, walking[:2], parent=self.count)
             out["full"] = full
@@ -389,6 +423,18 @@ def rest_scan(search: Search, n: int, rng: np.random.Generator) -> None:
             print(f"rest scan {k + 1}/{n}: best rest {b['rest']:.3f} objective {b['objective']:.3f} "
                   f"(design {b['design']}), {len(search.archive)} feasible, {time.perf_counter() - t0:.0f} s",
                   flush=True)
+
+
+def rest_slice(search: Search, n: int) -> None:
+    """clearing-toy with its fore-aft foot radius (10.7-30 mm) and its legs' centre-of-mass height
+    (d_z -114 to -145 mm) varied on an n x n grid, everything else kept, launched from rest: how
+    the launch depends on the fore-aft margin alone."""
+    base = np.array([search.base.get(n_) for n_ in FREE])
+    for r in np.linspace(base[1], 0.03, n):
+        for dz in np.linspace(base[5], -0.145, n):
+            x = base.copy()
+            x[1], x[5] = r, dz
+            search.rest_evaluate("rest slice", x)
 
 
 def rest_evolve(search: Search, n: int, rng: np.random.Generator, budget: float = math.inf) -> None:
@@ -511,10 +557,83 @@ def finalists(search: Search, n: int) -> None:
                        f"fixed point: {[float(v) for v in best.fixed_point]}")
 
 
+def summarise(log: Path) -> None:
+    """From the logs: per stage the designs evaluated, with valid parameters, with a gait, stable,
+    clearing by 1 mm and feasible, and the best scores (printed); the rest walks binned by the
+    fore-aft margin (printed); the figure docs/<log's name>.png."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    with open(log) as f:
+        rows = list(csv.DictReader(f))
+    with open(log.with_name(log.stem + "_rest" + log.suffix)) as f:
+        rest = list(csv.DictReader(f))
+
+    def num(r, c):
+        return float(r[c]) if r.get(c, "") not in ("", None) else math.nan
+
+    stages = {r["stage"].split(" ")[0] if not r["stage"].startswith("rest") else r["stage"].rsplit(" ", 1)[0]
+              for r in rows}
+    for name in sorted(stages):
+        sel = [r for r in rows if r["stage"] == name or r["stage"].startswith(name + " ")]
+        lam = np.array([num(r, "max_abs_eigenvalue") for r in sel])
+        clr = np.array([num(r, "clearance") for r in sel])
+        feas = [r for r in sel if r["feasible"] == "1"]
+        best = max(feas, key=lambda r: float(r["score"])) if feas else None
+        print(f"{name}: {len(sel)} designs, {sum(r['why'] not in ('inertia', 'parameters') for r in sel)} "
+              f"valid, {int(np.isfinite(lam).sum())} with a gait, {int((lam < 1).sum())} stable, "
+              f"{int(((lam < 1) & (clr >= MIN_CLEARANCE)).sum())} stable and clear by 1 mm, {len(feas)} "
+              f"feasible; best score {best['score'] if best else '-'} (launch "
+              f"{best['launch'] if best else '-'}, basin {best['basin'] if best else '-'})")
+    valid = [r for r in rest if r["rest"] not in ("", "-1")]
+    score = np.array([float(r["rest"]) for r in valid])
+    margin = 1e3 * np.array([float(r["fore_aft_margin"]) for r in valid])
+    full = np.array([any(r[f"reason_{t:g}"] == "walking" for t in REST_TIPS) for r in valid])
+    print(f"rest walks: {len(rest)} designs, {len(valid)} valid, {int(full.sum())} walked "
+          f"{REST_STEPS} steps from at least one tip, {sum(r['gait'] == '1' for r in valid)} of those with "
+          f"a gait found from the walk, {sum(r['feasible'] == '1' for r in valid)} feasible")
+    for lo, hi in ((-np.inf, -10), (-10, -5), (-5, 0), (0, 5), (5, 10), (10, 20), (20, np.inf)):
+        sel = (margin >= lo) & (margin < hi)
+        if sel.any():
+            print(f"  fore-aft margin {lo:g}..{hi:g} mm: {int(sel.sum())} designs, rest score mean "
+                  f"{score[sel].mean():.3f}, max {score[sel].max():.3f}, {int(full[sel].sum())} walked "
+                  "the budget")
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.3))
+    ax = axes[0]
+    scan_sel = np.array([r["stage"] == "rest scan" for r in valid])
+    ax.plot(margin[~scan_sel], score[~scan_sel], ".", ms=2, color="tab:orange", alpha=0.4,
+            label="evolved (stage 3)")
+    ax.plot(margin[scan_sel], score[scan_sel], ".", ms=2, color="k", alpha=0.4,
+            label="Latin hypercube (stage 2)")
+    ax.axvline(0, color="0.5", lw=0.8)
+    ax.set_xlim(-30, 100)
+    ax.set_xlabel("fore-aft margin: COM height above the foot's fore-aft centre of curvature (mm)")
+    ax.set_ylabel("launch-from-rest score (stages 2-3)")
+    ax.legend(fontsize=7, markerscale=4)
+    ax = axes[1]
+    feas = [r for r in rows if r["feasible"] == "1"]
+    colours = (("seed", "k"), ("spread", "tab:blue"), ("local", "tab:green"), ("rest", "tab:red"))
+    for prefix, colour in colours:
+        sel = [r for r in feas if r["stage"].startswith(prefix)]
+        if sel:
+            ax.plot([float(r["max_abs_eigenvalue"]) for r in sel], [float(r["basin"]) for r in sel], ".",
+                    ms=4 if prefix != "seed" else 10, color=colour, alpha=0.6, label=f"{prefix} ({len(sel)})")
+    ax.set_xlabel("step-map max |eigenvalue|")
+    ax.set_ylabel("median random-direction basin radius (3 directions)")
+    ax.set_title("feasible designs: stable, clear by 1 mm, cannot stand", fontsize=9)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(HERE / f"{log.stem}.png", dpi=110)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scan", type=int, default=300, help="Latin-hypercube designs")
     parser.add_argument("--rest", type=int, default=5000, help="Latin-hypercube designs launched from rest")
+    parser.add_argument("--slice", type=int, default=0,
+                        help="n: an n x n grid of clearing-toy's foot radius and COM height, from rest")
     parser.add_argument("--rest-budget", type=float, default=900.0, help="s for the rest evolution")
     parser.add_argument("--spread", type=int, default=1500, help="evolutionary designs")
     parser.add_argument("--budget", type=float, default=math.inf, help="s for the spread stage at most")
@@ -522,9 +641,15 @@ def main() -> None:
     parser.add_argument("--finalists", type=int, default=5)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--log", type=Path, default=HERE / "robust_search.csv")
+    parser.add_argument("--rest-min-margin", type=float, default=-math.inf,
+                        help="m: stage 3 keeps to designs whose fore-aft margin is at least this")
+    parser.add_argument("--summary-only", action="store_true", help="only summarise the logs")
     args = parser.parse_args()
+    if args.summary_only:
+        summarise(args.log)
+        return
     rng = np.random.default_rng(args.seed)
-    search = Search(args.log)
+    search = Search(args.log, args.rest_min_margin)
     t0 = time.perf_counter()
     seeds = [search.evaluate("seed", np.array([load_params(ROOT / "data" / "params" / f"{name}.toml").get(n)
                                                for n in FREE]), [z])
@@ -535,6 +660,7 @@ def main() -> None:
             s["score"] = -1.0
     seeds = [s for s in seeds if s["gait"] is not None]
     scan(search, args.scan, rng)
+    rest_slice(search, args.slice)
     rest_scan(search, args.rest, rng)
     rest_evolve(search, 10**9, rng, args.rest_budget)
     spread(search, args.spread, rng, seeds, args.budget)
@@ -543,7 +669,9 @@ def main() -> None:
     print(f"{search.count} designs, {len(search.archive)} feasible, {time.perf_counter() - t0:.0f} s",
           flush=True)
     search.close()
-    finalists(search, args.finalists)
+    if args.finalists:
+        finalists(search, args.finalists)
+    summarise(args.log)
 
 
 if __name__ == "__main__":
