@@ -43,8 +43,9 @@ def main() -> None:
     print(f"6 degrees, tau 0 to 3 ms: {soft.status} ({soft.message}); events: "
           f"{[e.detail for e in soft.events] or 'none'}")
     for r in rows[:: max(1, len(rows) // 8)] + [rows[-1]]:
-        print(f"tau {r['tau_ms']:6.3f} ms  max|eig| {r['max_abs_eigenvalue']:.4f}  step {r['step_time_s']:.5f} s  "
-              f"stride {100 * r['stride_m']:.3f} cm  lean {r['lean_deg']:.3f} deg  steer {r['steer_deg']:.3f} deg")
+        print(f"tau {r['tau_ms']:6.3f} ms  max|eig| {r['max_abs_eigenvalue']:.4f}  "
+              f"step {r['step_time_s']:.5f} s  stride {100 * r['stride_m']:.3f} cm  "
+              f"lean {r['lean_deg']:.3f} deg  steer {r['steer_deg']:.3f} deg")
     for tau in (1e-3, 2.5e-3):
         down = continue_branch(toy.replace(slope=SIX, **{"effects.soft_heel": tau}), "slope", SIX,
                                math.radians(4.0), max_points=120, z_start=z)
@@ -52,7 +53,8 @@ def main() -> None:
         first = f"{folds[0]:.7f} rad ({math.degrees(folds[0]):.4f} deg)" if folds else "none"
         print(f"tau {1e3 * tau:g} ms, followed down from 6 degrees: first fold at {first}; "
               f"{down.status}; all folds {[round(math.degrees(f), 3) for f in folds]} deg")
-    print(f"rigid: the fit's gait ends at its fold at {toy.slope:.7f} rad ({math.degrees(toy.slope):.4f} deg)")
+    print(f"rigid: the fit's gait ends at its fold at {toy.slope:.7f} rad "
+          f"({math.degrees(toy.slope):.4f} deg)")
 
 
 if __name__ == "__main__":
