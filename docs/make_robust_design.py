@@ -72,6 +72,7 @@ import argparse
 import csv
 import dataclasses
 import math
+import sys
 import time
 from pathlib import Path
 
@@ -83,29 +84,12 @@ from toywalk.model.optimize import minimise_max_eigenvalue
 from toywalk.model.parameters import ParameterError
 from toywalk.model.walker import StepFailure
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+# The seeds' fixed points, the free parameters and their box: the clearance design's own.
+from make_clearance_design import BOUNDS, FREE, Z_CLEARING, Z_STABLE  # noqa: E402
+
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
-# Fixed points of the seeds (public state order), from tests/model/documented.py.
-Z_STABLE = [0.04661788900461893, -0.5141677402083711, -0.001876783030565294, 0.021718470946236697,
-            -0.08694501480362028, 4.231073000769995, 0.08135087368205376, 2.3913296604495535]
-Z_CLEARING = [0.07050947332653978, -0.46650017313326736, -0.010489277599679167, -0.4243942466228133,
-              -0.18659626122490666, 3.228258310166639, 0.13667971250468633, 1.1314428232345919]
-FREE = ["hip_width", "foot_radius", "foot_lateral_radius", "com_offset[0]", "com_offset[1]",
-        "com_offset[2]", "inertia[0]", "inertia[1]", "inertia[2]", "inertia[5]", "slope"]
-# docs/make_clearance_design.py's box (see the module docstring).
-BOUNDS = {
-    "hip_width": (0.02, 0.16),
-    "foot_radius": (0.002, 0.03),
-    "foot_lateral_radius": (0.001, 0.03),
-    "com_offset[0]": (-0.02, 0.02),
-    "com_offset[1]": (0.05, 0.25),
-    "com_offset[2]": (-0.145, -0.05),
-    "inertia[0]": (2e-5, 1e-3),
-    "inertia[1]": (2e-6, 1e-3),
-    "inertia[2]": (2e-5, 1e-3),
-    "inertia[5]": (-1e-4, 1e-4),
-    "slope": (0.005, 0.105),
-}
 LO = np.array([BOUNDS[n][0] for n in FREE])
 HI = np.array([BOUNDS[n][1] for n in FREE])
 #: Tips (degrees) and step budget of the gait-free launches from rest of stages 2-3.
@@ -398,13 +382,20 @@ def _fmt(v):
     return f"{v:.6g}" if isinstance(v, float) else v
 
 
+def _latin_designs(n: int, rng: np.random.Generator) -> np.ndarray:
+    """``n`` Latin-hypercube designs over the box (rows in :data:`FREE`'s order), each with its
+    lateral foot radius no larger than its fore-aft one (the two swapped where drawn the other
+    way round)."""
+    u = (rng.permuted(np.tile(np.arange(n), (len(FREE), 1)), axis=1).T + rng.random((n, len(FREE)))) / n
+    x = LO + u * (HI - LO)
+    x[:, 1], x[:, 2] = np.maximum(x[:, 1], x[:, 2]), np.minimum(x[:, 1], x[:, 2])
+    return x
+
+
 def scan(search: Search, n: int, rng: np.random.Generator) -> None:
     """Latin-hypercube designs over the whole box, Newton from both seeds."""
-    u = (rng.permuted(np.tile(np.arange(n), (len(FREE), 1)), axis=1).T + rng.random((n, len(FREE)))) / n
     t0 = time.perf_counter()
-    for k in range(n):
-        x = LO + u[k] * (HI - LO)
-        x[1], x[2] = max(x[1], x[2]), min(x[1], x[2])  # lateral radius <= fore-aft radius
+    for k, x in enumerate(_latin_designs(n, rng)):
         search.evaluate("scan", x, [Z_CLEARING, Z_STABLE])
         if (k + 1) % 50 == 0:
             print(f"scan {k + 1}/{n}: {len(search.archive)} feasible, {time.perf_counter() - t0:.0f} s",
@@ -413,11 +404,8 @@ def scan(search: Search, n: int, rng: np.random.Generator) -> None:
 
 def rest_scan(search: Search, n: int, rng: np.random.Generator) -> None:
     """Latin-hypercube designs over the whole box, launched from rest (no gait needed)."""
-    u = (rng.permuted(np.tile(np.arange(n), (len(FREE), 1)), axis=1).T + rng.random((n, len(FREE)))) / n
     t0 = time.perf_counter()
-    for k in range(n):
-        x = LO + u[k] * (HI - LO)
-        x[1], x[2] = max(x[1], x[2]), min(x[1], x[2])
+    for k, x in enumerate(_latin_designs(n, rng)):
         search.rest_evaluate("rest scan", x)
         if (k + 1) % 1000 == 0:
             b = max(search.rest_archive, key=lambda r: r["objective"])

@@ -124,6 +124,14 @@ class _Foot:
         return math.sqrt(self.shape[2, 2])
 
 
+def _public_state(z, name: str) -> np.ndarray:
+    """``z`` as a float array, refused unless it is a finite public state of 8 components."""
+    z = np.asarray(z, dtype=float)
+    if z.shape != (8,) or not np.all(np.isfinite(z)):
+        raise ValueError(f"{name} must be a finite state of 8 components, got {z!r}")
+    return z
+
+
 def _foot(params: Params, foot_axes=None, foot_pitch: float = 0.0) -> _Foot:
     """The foot of ``build_mjcf``'s options (validated): the spheroid of the torus's rim
     curvatures by default."""
@@ -461,9 +469,7 @@ def walk_in_mujoco(params: Params, z0: np.ndarray, steps: int = 20, timestep: fl
     MujocoWalk
     """
     mujoco = _require_mujoco()
-    z0 = np.asarray(z0, dtype=float)
-    if z0.shape != (8,) or not np.all(np.isfinite(z0)):
-        raise ValueError(f"z0 must be a finite state of 8 components, got {z0!r}")
+    z0 = _public_state(z0, "z0")
     if steps < 1:
         raise ValueError(f"steps must be >= 1, got {steps!r}")
     if not (sample_rate > 0 and math.isfinite(sample_rate)):
@@ -695,9 +701,7 @@ def strike_in_mujoco(params: Params, z_minus: np.ndarray, tau: float, zeta: floa
     MujocoStrike
     """
     mujoco = _require_mujoco()
-    z_minus = np.asarray(z_minus, dtype=float)
-    if z_minus.shape != (8,) or not np.all(np.isfinite(z_minus)):
-        raise ValueError(f"z_minus must be a finite state of 8 components, got {z_minus!r}")
+    z_minus = _public_state(z_minus, "z_minus")
     _contact_settings(tau, zeta)
     for name, value in (("substeps", substeps), ("steps_per_tau", steps_per_tau), ("span", span)):
         if not (isinstance(value, int) and value >= 1):

@@ -116,10 +116,15 @@ def _slope_range(args, params) -> tuple[Path | None, float, float, int]:
     if not (math.isfinite(low) and math.isfinite(high) and low <= own <= high and low < high):
         raise CommandError(f"--slopes LOW HIGH must hold the walker's slope {own:.6g} rad, "
                            f"got {low:g} {high:g}")
-    points = 60 if args.points is None else args.points
+    return out, float(low), float(high), _points(args, 60)
+
+
+def _points(args, default: int) -> int:
+    """``--points``, or ``default`` where not given; refused below 2."""
+    points = default if args.points is None else args.points
     if points < 2:
         raise CommandError(f"--points must be >= 2, got {points}")
-    return out, float(low), float(high), points
+    return points
 
 
 def _family_summary(family) -> str:
@@ -252,9 +257,7 @@ def _continue(args, params) -> int:
     if args.out is None:
         raise CommandError("--continue needs --out TABLE.csv (the plot is written beside it)")
     out = output_path(args.out, (".csv",))
-    points = 100 if args.points is None else args.points
-    if points < 2:
-        raise CommandError(f"--points must be >= 2, got {points}")
+    points = _points(args, 100)
     try:
         branch = continue_branch(params, name, start, end, max_points=points,
                                  progress=sys.stderr.isatty())
