@@ -105,6 +105,10 @@ class BVP:
         Gauss-Legendre points in (0, 1).
     jac_fun : casadi.Function
         ``(w, p) -> dg/dw``.
+    soft : bool
+        The heel strike is the compliant one (``effects.soft_heel``, :func:`soft_link`): each
+        step's unknown ``T`` is then the whole step, its flow lasting ``T - span tau`` and the
+        phase ``span tau`` (:func:`strike_phase`).
     """
 
     solver: ca.Function
@@ -118,6 +122,7 @@ class BVP:
     tau: np.ndarray
     jac_fun: ca.Function  # (w, p) -> dg/dw
     periodic: bool = True
+    soft: bool = False
 
     @property
     def phase_size(self) -> int:
@@ -206,13 +211,39 @@ def native_interval(planar: bool, degree: int) -> ca.Function:
 
 
 @cache
+def soft_link(planar: bool) -> ca.Function:
+    """:func:`toywalk.model.compliant.collocation_strike` compiled with its first derivatives
+    (once per machine, cached on disk like :func:`native_interval`; about 40 s), its own
+    curvature left out of an NLP's Lagrangian Hessian (``curvature=False`` of
+    :func:`toywalk.model.compiled.cached_with_derivatives`): the strike's exact Hessian costs 0.8 s
+    an evaluation on the 3D walker, its Jacobian 0.04 s, and IPOPT's limited-memory Hessian in its
+    place left a fit of the clearing toy's soft heel short of convergence after 400 s."""
+    from .compliant import collocation_strike
+
+    return cached_with_derivatives(f"soft_link planar={planar}", lambda: collocation_strike(planar),
+                                   curvature=False)
+
+
+def strike_phase(p):
+    """The compliant heel strike's duration (s) from a parameter input (NumPy or CasADi): the
+    phase's ``span`` time constants (toywalk.model.compliant.SPAN; 0 on rigid feet)."""
+    from .compliant import SPAN
+
+    return SPAN * view(p).effects["soft_heel"]
+
+
+@cache
 def bvp(planar: bool, n_intervals: int = 30, degree: int = 4, phases: int = 1,
-        periodic: bool = True) -> BVP:
+        periodic: bool = True, soft: bool = False) -> BVP:
     """The (cached) gait BVP of the 3D or planar system over ``phases`` steps: periodic (a gait,
     one step or a stride) or transient (a walk from a free heel-strike start; see :class:`BVP`).
 
     A step's parameter input alternates its side entry (left leg in stance, then right): pass the
     input of the first step's side as ``p``.
+
+    ``soft``: the heel strike is the compliant one (the ``soft_heel`` effect, :func:`soft_link`),
+    its phase part of each step's duration ``T`` (:class:`BVP`); the rigid strike otherwise, the
+    effect's strength then unused.
     """
     lay = layout(planar)
     nd = lay.n_dyn
@@ -224,7 +255,11 @@ def bvp(planar: bool, n_intervals: int = 30, degree: int = 4, phases: int = 1,
     g_end = ca.Function("g_end", [xs, ps], [base["guard"](full, ps)])
     rdot = ca.Function("hdot", [xs, ps], [ca.mtimes(ca.jacobian(base["guard"](full, ps)[0], xs),
                                                      base["rhs"](full, ps)[:nd])])
-    coll = ca.Function("coll", [xs, ps], [base["collision"](full, ps)[:nd]])
+    if soft:
+        xm, pm = ca.MX.sym("x", nd), ca.MX.sym("p", N_INPUT)
+        coll = ca.Function("coll", [xm, pm], [soft_link(planar)(ca.vertcat(xm, ca.MX.zeros(pad)), pm)[:nd]])
+    else:
+        coll = ca.Function("coll", [xs, ps], [base["collision"](full, ps)[:nd]])
 
     tau = np.array(ca.collocation_points(degree, "legendre"))
     size = 1 + nd + n_intervals * nd * (degree + 1)
@@ -238,7 +273,7 @@ def bvp(planar: bool, n_intervals: int = 30, degree: int = 4, phases: int = 1,
     for phase in range(phases):
         pk = _phase_input(p, phase)
         offset = phase * size
-        big_t = w[offset]
+        big_t = w[offset] - (strike_phase(p) if soft else 0)  # the flow's duration
         x0 = w[offset + 1:offset + 1 + nd]
         block = ca.reshape(w[offset + 1 + nd:offset + size], nd * (degree + 1), n_intervals)
         x_next = block[nd * degree:, :]
@@ -268,7 +303,7 @@ def bvp(planar: bool, n_intervals: int = 30, degree: int = 4, phases: int = 1,
     ub += [0.0] * n_link
     # The heel strike ahead and moving down; exclude the trivial zero-length "step" with the legs
     # together: the swing foot starts behind the stance foot (as in Walker.step) and the step
-    # lasts at least 0.05 sqrt(l/g).
+    # lasts at least 0.05 sqrt(l/g) (its flow, with soft feet).
     for big_t, x0, xk, guard, pk in guards:
         start_ahead = g_end(x0, pk)[1]
         eqs += [guard[1], rdot(xk, pk), big_t - 0.05 * ca.sqrt(par.leg_length / par.gravity),
@@ -294,7 +329,7 @@ def bvp(planar: bool, n_intervals: int = 30, degree: int = 4, phases: int = 1,
     jac_fun = ca.Function("dg", [w, p], [ca.jacobian(g, w)])
     return BVP(solver=solver, constraints=constraints, n_dyn=nd, n_int=n_intervals,
                     degree=degree, phases=phases, lbg=np.array(lb), ubg=np.array(ub), tau=tau,
-                    jac_fun=jac_fun, periodic=periodic)
+                    jac_fun=jac_fun, periodic=periodic, soft=soft)
 
 
 @cache
@@ -321,7 +356,12 @@ def contact_travel(prob: BVP) -> ca.Function:
     if pad == 1:
         rate, jump = ca.vertcat(rate, 0), ca.vertcat(jump, 0)
     f_rate = ca.Function("travel_rate", [xs, ps], [rate])
-    f_jump = ca.Function("contact_jump", [xs, ps], [jump])
+    if prob.soft:
+        xm, pm = ca.MX.sym("x", nd), ca.MX.sym("p", N_INPUT)
+        jump = soft_link(planar)(ca.vertcat(xm, ca.MX.zeros(pad)), pm)[nd:]
+        f_jump = ca.Function("contact_jump", [xm, pm], [ca.vertcat(jump, 0) if pad == 1 else jump])
+    else:
+        f_jump = ca.Function("contact_jump", [xs, ps], [jump])
     b_vec = np.array(ca.collocation_coeff(list(prob.tau))[2]).ravel()
     xc_s, h_s = ca.SX.sym("xc", nd * d), ca.SX.sym("h")
     xc_m = ca.reshape(xc_s, nd, d)
@@ -334,7 +374,8 @@ def contact_travel(prob: BVP) -> ca.Function:
         pk = _phase_input(p, phase)
         offset = phase * prob.phase_size
         block = ca.reshape(w[offset + 1 + nd:offset + prob.phase_size], nd * (d + 1), prob.n_int)
-        rolled.append(interval(block[:nd * d, :], ca.repmat(w[offset] / prob.n_int, 1, prob.n_int),
+        flow = w[offset] - (strike_phase(p) if prob.soft else 0)
+        rolled.append(interval(block[:nd * d, :], ca.repmat(flow / prob.n_int, 1, prob.n_int),
                                ca.repmat(pk, 1, prob.n_int)))
         jumps.append(f_jump(block[nd * d:, prob.n_int - 1], pk))
     return ca.Function("contact_travel", [w, p], [ca.horzcat(*rolled), ca.horzcat(*jumps)],
@@ -406,16 +447,12 @@ def solve_collocation(params: Params, z_guess: np.ndarray | None = None, planar:
     CollocationGait
         ``success`` False (with IPOPT's status) if it did not converge; never raises for that.
 
-    Raises
-    ------
-    ValueError
-        For a walker with ``effects.soft_heel`` on: the transcription's collision is the rigid one.
+    With ``effects.soft_heel`` on, the heel strike is the compliant one (:func:`soft_link`; the
+    step map's above :data:`toywalk.model.compliant.TAU_LINEAR`) and ``step_time`` holds its
+    phase, as the step map's does.
     """
-    if params.effects.get("soft_heel", 0.0) != 0.0:
-        raise ValueError("solve_collocation models the rigid heel strike: set effects.soft_heel to 0 "
-                         "(the compliant strike is in the shooting step map, toywalk.model.Walker)")
     walker = Walker(params, planar=planar)
-    prob = bvp(planar, n_intervals, degree, walker.period)
+    prob = bvp(planar, n_intervals, degree, walker.period, soft=walker.soft_kernels is not None)
     p = params.input_vector()
     if warm_start is not None:
         w0, lam0 = warm_start.solution, warm_start.multipliers
@@ -433,7 +470,7 @@ def solve_collocation(params: Params, z_guess: np.ndarray | None = None, planar:
     viol = np.maximum(prob.lbg - g, 0) + np.maximum(g - prob.ubg, 0)
     max_res = float(np.max(viol))
     nd = prob.n_dyn
-    times, states = _trajectory(w, prob)
+    times, states = _trajectory(w, prob, float(strike_phase(p)) if prob.soft else 0.0)
     x0 = w[1:1 + nd]
     jac = cycle_jacobian(w, p, prob, walker)
     vals = np.linalg.eigvals(jac[np.ix_(_active(planar), _active(planar))]) if planar else \
@@ -455,15 +492,17 @@ def _active(planar: bool) -> list[int]:
     return [4, 5, 6, 7] if planar else list(range(8))
 
 
-def _trajectory(w: np.ndarray, prob: BVP) -> tuple[np.ndarray, np.ndarray]:
-    """Mesh and collocation times (s, from the start of the period) and the states there."""
+def _trajectory(w: np.ndarray, prob: BVP, lead: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Mesh and collocation times (s, from the start of the period) and the states there; each
+    step's flow starts ``lead`` (s) after its start, the compliant strike's phase."""
     nd, d = prob.n_dyn, prob.degree
     times, states = [], []
     t0 = 0.0
     for phase in range(prob.phases):
         offset = phase * prob.phase_size
         big_t = w[offset]
-        h = big_t / prob.n_int
+        h = (big_t - lead) / prob.n_int
+        t0 += lead
         times.append(t0)
         states.append(w[offset + 1:offset + 1 + nd])
         offset += 1 + nd
@@ -475,7 +514,7 @@ def _trajectory(w: np.ndarray, prob: BVP) -> tuple[np.ndarray, np.ndarray]:
             times.append(t0 + (k + 1) * h)
             states.append(w[offset:offset + nd])
             offset += nd
-        t0 += big_t
+        t0 += big_t - lead
     return np.array(times), np.array(states)
 
 
@@ -504,6 +543,8 @@ def cycle_jacobian(w: np.ndarray, p: np.ndarray, prob: BVP, walker: Walker) -> n
         dxn = -splu(a).solve(b)[-nd:]  # the end state is the last block of the step's variables
         x_end = np.concatenate([w[first + size - nd:first + size], np.zeros(walker.lay.nx - nd)])
         side = 1 if phase % 2 == 0 else -1
-        _, c_x, _ = walker.eng.k["collision_jac"](x_end, walker.params.input_vector(side))
+        soft = walker.soft_kernels
+        strike = walker.eng.k["collision_jac"] if soft is None else soft["soft_strike_jac"]
+        _, c_x, _ = strike(x_end, walker.params.input_vector(side))
         total = c_x[:nd, :nd] @ dxn @ total
     return walker._jac_to_public(total)

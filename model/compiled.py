@@ -128,11 +128,17 @@ def cached_functions(name: str, variant: str, build: Callable[[], dict[str, ca.F
 
 
 def cached_with_derivatives(variant: str, build: Callable[[], ca.Function],
-                            verbose: bool = True) -> ca.Function:
+                            verbose: bool = True, curvature: bool = True) -> ca.Function:
     """:func:`compile_with_derivatives` of ``build()``, without calling ``build`` when its
-    library is cached (as :func:`cached_functions`; ``variant`` names the builder's arguments)."""
-    return _cached("derivatives", variant, lambda: {"fn": build()},
-                   lambda functions: _derivatives_library(functions["fn"], verbose),
+    library is cached (as :func:`cached_functions`; ``variant`` names the builder's arguments).
+
+    ``curvature`` False: the second derivative the library brings is zero (its forward over
+    reverse function returns zeros), so that an NLP's Lagrangian Hessian leaves out this
+    function's own curvature, as a Gauss-Newton method does, where computing it would cost more
+    than the iterations it saves. The first derivatives, and so the NLP's solution and its
+    convergence test, are exact."""
+    return _cached("derivatives", variant + ("" if curvature else " curvature=0"), lambda: {"fn": build()},
+                   lambda functions: _derivatives_library(functions["fn"], verbose, curvature),
                    _WITH_DERIVATIVES)["fn"]
 
 
@@ -209,12 +215,18 @@ def compile_with_derivatives(fn: ca.Function, verbose: bool = True) -> ca.Functi
     return ca.external(fn.name(), str(lib), _WITH_DERIVATIVES)
 
 
-def _derivatives_library(fn: ca.Function, verbose: bool) -> Path | None:
+def _derivatives_library(fn: ca.Function, verbose: bool, curvature: bool = True) -> Path | None:
     """The cached library of ``fn`` and its first and second derivatives (as
-    :func:`compile_with_derivatives` describes), or None without a compiler."""
+    :func:`compile_with_derivatives` describes; without ``curvature`` the second is zero,
+    :func:`cached_with_derivatives`), or None without a compiler."""
     adj = fn.reverse(1)
-    derived = [fn, fn.forward(1), adj, adj.forward(1)]
-    return _library(f"{fn.name()}_ad", derived, verbose, with_sparsity=True)
+    second = adj.forward(1)
+    if not curvature:
+        inputs = [ca.MX.sym(second.name_in(i), second.sparsity_in(i)) for i in range(second.n_in())]
+        zeros = [ca.MX(second.size1_out(i), second.size2_out(i)) for i in range(second.n_out())]
+        second = ca.Function(second.name(), inputs, zeros, second.name_in(), second.name_out())
+    derived = [fn, fn.forward(1), adj, second]
+    return _library(f"{fn.name()}_ad" + ("" if curvature else "_gn"), derived, verbose, with_sparsity=True)
 
 
 def _library(name: str, functions: list[ca.Function], verbose: bool,

@@ -22,16 +22,18 @@ __all__ = ["LIBRARIES", "build_libraries"]
 
 
 #: Every library the toolkit compiles, as ``(name, builder, args)`` with the builder a function
-#: of ``toywalk.model.engine`` (``native_interval``: of ``toywalk.model.collocation``), longest to
-#: compile first:
+#: of ``toywalk.model.engine`` (``native_interval``, ``soft_link``: of ``toywalk.model.collocation``),
+#: longest to compile first:
 #: seconds on this project's 2-core machine with gcc 12 at -O1 (2026-11-27), the walker's
 #: engine 49 and 10 (3D, planar), the fit's collocation intervals 38 and 22 (3D, degrees 4 and
 #: 3 of the periodic and transient fits), about 1 each planar; the compliant heel strike's
-#: (the ``soft_heel`` effect) 5 and 1 (3D, planar; 2026-11-28).
+#: (the ``soft_heel`` effect) 5 and 1 (3D, planar; 2026-11-28), and its form in the fits'
+#: collocation with first derivatives about 40 (3D; 2026-11-29).
 LIBRARIES = (
     ("3D walker", "engine", (False,)),
     ("3D collocation interval, degree 4", "native_interval", (False, 4)),
     ("3D collocation interval, degree 3", "native_interval", (False, 3)),
+    ("3D soft heel strike in collocation", "soft_link", (False,)),
     ("planar walker", "engine", (True,)),
     ("3D soft heel strike", "soft_heel_kernels", (False,)),
     ("planar collocation interval, degree 4", "native_interval", (True, 4)),
@@ -44,7 +46,7 @@ def _build(entry: tuple[str, str, tuple]) -> float:
     """Build one of :data:`LIBRARIES` (compiling it if its library is not cached); seconds taken."""
     _, builder, args = entry
     start = time.perf_counter()
-    getattr(collocation if builder == "native_interval" else engine, builder)(*args)
+    getattr(collocation if builder in ("native_interval", "soft_link") else engine, builder)(*args)
     return time.perf_counter() - start
 
 

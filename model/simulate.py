@@ -16,6 +16,7 @@ import numpy as np
 from scipy.interpolate import CubicHermiteSpline
 from tqdm.auto import tqdm
 
+from .compliant import phase_path
 from .effects import CONTINUOUS
 from .parameters import Params
 from .walker import StepFailure, Walker
@@ -184,12 +185,24 @@ def simulate(params: Params, z0: np.ndarray, steps: int, sample_rate: float | No
         losses.append(step.collision_loss)
         dissipated += step.dissipated[-1]
         # The heel strike is the landing foot's touchdown: with a compliant strike
-        # (effects.soft_heel) its phase follows it, and the samples inside the phase hold the
-        # rolling model's state after it (the next step's first).
+        # (effects.soft_heel) its phase follows it, and the samples inside the phase take the
+        # walker's angles and rates through it (toywalk.model.compliant.phase_path), the landing
+        # foot their stance (its pitch the stance pitch) as the heel strike's event says.
         touchdown = t0 + (step.step_time - step.strike_phase)
-        t0 += step.step_time
         origin = origin + np.array([step.contact[0], sign * step.contact[1]])
         landing = "R" if stance == "L" else "L"
+        if step.strike_phase > 0:
+            inside = np.arange(next_sample, t0 + step.step_time - 1e-12, sample_dt)
+            if len(inside):
+                path_t, path_x = phase_path(params, walker.full_state(step.z_minus), planar, side)
+                xs = np.column_stack([np.interp(inside - touchdown, path_t, col) for col in path_x.T])
+                chunks_t.append(inside)
+                pub = np.array([_mirror(walker.to_public(x), sign) for x in xs])
+                chunks_x.append(pub[:, [0, 1, 2, 3, 6, 7, 4, 5]])  # the landing leg's pitch first
+                chunks_s.append(np.full(len(inside), landing))
+                chunks_c.append(np.tile(origin, (len(inside), 1)))
+                next_sample = inside[-1] + sample_dt
+        t0 += step.step_time
         events.append(HeelStrike(time=touchdown, foot=landing, x=float(origin[0]), y=float(origin[1])))
         sign = -sign
         z = step.z_plus

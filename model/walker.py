@@ -346,6 +346,12 @@ class Walker:
         self.dt = params.time_scale / steps_per_time_unit
         self.max_step_time = max_step_time * params.time_scale
 
+    @property
+    def soft_kernels(self) -> dict | None:
+        """The compliant heel strike's kernels (``soft_strike``, ``soft_strike_jac``;
+        :func:`toywalk.model.engine.soft_heel_kernels`) with ``effects.soft_heel`` on, else None."""
+        return self._soft
+
     # --------------------------------------------------------------------------- state layout
     def to_internal(self, z: np.ndarray) -> np.ndarray:
         """Internal dynamic state (q, u) from a public state z, shape (8,)."""

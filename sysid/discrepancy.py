@@ -51,6 +51,7 @@ import math
 import time
 
 from scipy import special
+from toywalk.model.effects import EFFECTS
 from toywalk.model.parameters import Params
 from toywalk.model.trajectory import TrajectoryTable
 
@@ -70,6 +71,7 @@ from .naming import (
     Explanation,
     Verdict,
     candidates,
+    compatible,
     complete_rows,
     decide,
     judge,
@@ -353,16 +355,27 @@ def _diagnose(table: TrajectoryTable, params: Params, *, free, effects, paramete
         return Diagnosis("adequate", None, [], ranking, {}, evidence, base, {}, res_base, None,
                          features, None, RULE, alpha, seconds)
     to_fit = (significant or ranking[:2])[:MAX_EXTENDED]
+    # An effect whose score at its null does not speak for its range (Effect.local False:
+    # soft_heel) is fitted whatever its score says.
+    to_fit += [r for r in ranking if r not in to_fit and not _local(r["effect"])]
     extended = {}
     by_name = {c.name: c for c in cands}
     say(f"extended fits: {', '.join(r['effect'] for r in to_fit)}")
-    tasks = [dict(table=table, params=base.params, free=free + [row["effect"]], check_jacobian=False,
-                  warm=base, **candidate_options, **noise_opt) for row in to_fit]
+    tasks, owner = [], []
+    for i, row in enumerate(to_fit):
+        for value in _starts(row["effect"]):  # a local candidate from the base fit, else several
+            tasks.append(dict(table=table, free=free + [row["effect"]], check_jacobian=False,
+                              **(dict(params=base.params, warm=base) if value is None else
+                                 dict(params=base.params.replace(**{row["effect"]: value}))),
+                              **candidate_options, **noise_opt))
+            owner.append(i)
+    results = run_fits(tasks, pool)
+    fits = [_best([r for r, o in zip(results, owner, strict=True) if o == i]) for i in range(len(to_fit))]
     # One scale for the chi-squares the candidates are compared on: the largest design effect of
     # those fitted (1 with nothing shared), so that their order and gaps stay chi-square's; each
     # candidate's own design effect for its p-value (score.score_statistics).
     common = max((r["design_effect"] for r in to_fit), default=1.0)
-    for row, ext in zip(to_fit, run_fits(tasks, pool), strict=True):
+    for row, ext in zip(to_fit, fits, strict=True):
         name = row["effect"]
         if isinstance(ext, str):
             row.update(fitted=False, reason=ext)
@@ -403,6 +416,8 @@ def _diagnose(table: TrajectoryTable, params: Params, *, free, effects, paramete
         return held["base"]["chi2"] - held[name]["chi2"], reasons
 
     def together(best: dict, runner: dict) -> bool:
+        if not compatible(best["effect"], runner["effect"]):  # the fits refuse them together
+            return False
         say(f"pair fit: {best['effect']} + {runner['effect']}")
         pair = fit(table, extended[best["effect"]].params, free + [best["effect"], runner["effect"]],
                    check_jacobian=False, warm=extended[best["effect"]], **candidate_options, **noise_opt)
@@ -549,6 +564,38 @@ def _scatter_check(obs, base: FitResult) -> tuple[dict | None, list[str], str]:
     if refused:
         note += f"; {correlated}"
     return {n: (scatter[n]["sd"] if n in taken else base.noise_sd[n]) for n in scatter}, taken, note
+
+
+def _local(name: str) -> bool:
+    """A candidate's score test at its null speaks for its range (:attr:`Effect.local`)."""
+    return not name.startswith("effects.") or EFFECTS[name.split(".", 1)[1]].local
+
+
+#: The starts of a candidate whose score does not speak for its range (:func:`_local`), in units
+#: of its typical strength: soft_heel's 0.5 to 4 ms, MuJoCo's contact times and the brass
+#: strip's estimate (docs/soft_feet.md section 4). Its misfit has several minima in tau, and a
+#: fit from tau = 0 ended in the wrong one (docs/soft_feet.md section 8).
+NONLOCAL_STARTS = (0.5, 1.0, 2.0, 4.0)
+
+
+def _starts(name: str) -> list:
+    """A candidate's extended fits' starts: None (the base fit's solution) for a local one, else
+    its value at each of :data:`NONLOCAL_STARTS` within its bounds."""
+    if _local(name):
+        return [None]
+    effect = EFFECTS[name.split(".", 1)[1]]
+    low, high = effect.bounds
+    return [v for v in (f * effect.typical for f in NONLOCAL_STARTS) if low <= v <= high]
+
+
+def _best(results: list):
+    """Of one candidate's fits from several starts, the converged one with the least chi-square;
+    else the first fit; else the first reason why none could be set up."""
+    done = [r for r in results if not isinstance(r, str)]
+    converged = [r for r in done if r.success]
+    if converged:
+        return min(converged, key=lambda r: r.chi2)
+    return done[0] if done else results[0]
 
 
 def _evidence(res: ResidualReport, features: dict, top: list) -> str:

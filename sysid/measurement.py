@@ -535,16 +535,20 @@ class Timing:
         return reads if self.average is None else (self.average @ reads if sp.issparse(reads)
                                                    else _dot(self.average, reads))
 
-    def local(self, durations, time_offset, clock=None):
+    def local(self, durations, time_offset, clock=None, lead=0.0):
         """Each observation's position within its mesh interval (0 to 1 inside it), given the
         model's step durations (phases,) and the time offset (s), or the model's strike times
-        ``clock`` (:meth:`values`): NumPy or CasADi."""
+        ``clock`` (:meth:`values`): NumPy or CasADi. ``lead`` (s): each step's flow starts that
+        long after its heel strike (a compliant strike's phase,
+        :func:`toywalk.model.collocation.strike_phase`); a read inside the phase takes the
+        flow's polynomial continued back to it."""
         start = (time_offset + _dot(self.before, durations) if clock is None
                  else _dot(self.step_select(), clock))
-        return (self.t_rel - start) / _dot(self.own, durations) * self.n_int - self.interval
+        return (self.t_rel - start - lead) / (_dot(self.own, durations) - lead) * self.n_int - self.interval
 
-    def values(self, w, durations, time_offset, clock=None):
-        """The model's angle at every observation (without the ramp-frame offsets).
+    def values(self, w, durations, time_offset, clock=None, lead=0.0):
+        """The model's angle at every observation (without the ramp-frame offsets); ``lead`` as
+        for :meth:`local`.
 
         ``clock`` (shape (n_steps + 1,), s), when given, holds the model's strike times
         (:meth:`strikes`) as unknowns of their own, tied to the durations by :meth:`clock_links`:
@@ -553,7 +557,7 @@ class Timing:
         transient fit; measured on 20 steps of stable-toy: the misfit's Hessian took 17 s to
         build, with 2.0e5 non-zeros, and 0.5 s with 5.4e4 through the clock).
         """
-        weights = lagrange_weights(self.nodes, self.local(durations, time_offset, clock))
+        weights = lagrange_weights(self.nodes, self.local(durations, time_offset, clock, lead))
         return self._samples(sum(weight * _dot(b, w) for weight, b in zip(weights, self.basis, strict=True)))
 
     def step_select(self) -> sp.csr_matrix:

@@ -40,12 +40,12 @@ from scipy import special
 from toywalk.model.effects import EFFECTS, LIBRARY
 from toywalk.model.parameters import Params
 
-from .problem import fit_bounds
+from .problem import ALONE, fit_bounds
 from .residuals import scatter_noise
 
 __all__ = ["ALPHA", "MAX_EXTENDED", "NOISE_GROUPS", "NOISE_WHITENESS", "PARAMETERS", "RMS_FACTOR",
            "SEPARATION", "Candidate", "Decision", "DiagnoseError", "Explanation", "Verdict", "candidates",
-           "complete_rows", "decide", "feature_p", "judge", "lr_p_value", "noise_reference",
+           "compatible", "complete_rows", "decide", "feature_p", "judge", "lr_p_value", "noise_reference",
            "parameter_note", "percent", "rule_text", "tied", "white_components"]
 
 #: Family-wise false-alarm rate of the verdict.
@@ -112,11 +112,18 @@ class Candidate:
     breaks_symmetry: bool
 
 
+def compatible(a: str, b: str) -> bool:
+    """Two candidates that one fit can free together: not the compliant heel strike beside
+    another effect (:data:`toywalk.sysid.problem.ALONE`)."""
+    return not (ALONE in (a, b) and a.startswith("effects.") and b.startswith("effects."))
+
+
 def candidates(params: Params, free=(), effects=None, parameters=None) -> list[Candidate]:
     """The candidate causes: the library's effects (or those named in ``effects``) and the
     parameters of :data:`PARAMETERS` (or ``parameters``), less the free ones and those that
     cannot move (both bounds at the base value). The port-only terms of the registry
-    (:data:`toywalk.model.effects.PORTS`) are candidates only where ``effects`` names them."""
+    (:data:`toywalk.model.effects.PORTS`) are candidates only where ``effects`` names them, and
+    the compliant heel strike (``soft_heel``) only where no other effect is on or free."""
     names = []
     chosen = list(LIBRARY) if effects is None else list(effects)
     for name in chosen:
@@ -126,9 +133,12 @@ def candidates(params: Params, free=(), effects=None, parameters=None) -> list[C
     names += list(PARAMETERS if parameters is None else parameters)
     if not names:  # none asked for: the analysis goes straight to the missing force's search
         return []
+    # The compliant heel strike is fitted on the seed's walker only (problem.ALONE).
+    effects_on = any(n.startswith("effects.") for n in free) or any(
+        f"effects.{n}" != ALONE for n in params.active_effects)
     out = []
     for name in names:
-        if name in free:
+        if name in free or (name == ALONE and effects_on):
             continue
         low, high = fit_bounds(params, list(free) + [name], name)
         value = params.get(name)

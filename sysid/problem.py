@@ -38,7 +38,7 @@ import casadi as ca
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
-from toywalk.model.collocation import BVP, bvp, contact_travel, cycle_jacobian, initial_guess
+from toywalk.model.collocation import BVP, bvp, contact_travel, cycle_jacobian, initial_guess, strike_phase
 from toywalk.model.effects import EFFECTS
 from toywalk.model.gait import GaitNotFound, find_gait, lateral_singular, solve_fixed_point
 from toywalk.model.parameters import INPUT_NAMES, PARAMETER_NAMES, ParameterError, Params
@@ -62,11 +62,14 @@ from .measurement import (
 )
 from .residuals import NOISE_INFLATION, scatter_noise, shared_errors
 
-__all__ = ["CONTACT_KEYS", "MODELS", "STAGE_PATH", "FitError", "FitProblem", "check_request", "contact_sigma",
-           "continued", "estimates_only", "fit_bounds", "fit_line", "gait_period", "ipopt_options",
-           "parameter_bounds", "setup", "shared_covariance", "sigma_from", "stacked", "tied",
+__all__ = ["ALONE", "CONTACT_KEYS", "MODELS", "STAGE_PATH", "FitError", "FitProblem", "check_request",
+           "contact_sigma", "continued", "estimates_only", "fit_bounds", "fit_line", "gait_period",
+           "ipopt_options", "parameter_bounds", "setup", "shared_covariance", "sigma_from", "stacked", "tied",
            "whitened_loads", "with_values"]
 
+#: The effect a fit takes only on the seed's walker, no other effect on or free beside it: the
+#: compliant heel strike (docs/soft_feet.md section 5).
+ALONE = "effects.soft_heel"
 #: The models of a walk :func:`toywalk.sysid.fit.fit` knows.
 MODELS = ("periodic", "transient")
 #: Default collocation mesh (intervals per step, degree) of each model (:func:`toywalk.sysid.fit.fit`).
@@ -165,10 +168,14 @@ def _check_free(params: Params, free) -> list[str]:
                            "effects.hip_damping, ...)")
     if len(set(names)) != len(names):
         raise FitError(f"a parameter is named twice in {names}")
-    # The collocation transcription keeps the rigid collision (docs/soft_feet.md section 5).
-    if "effects.soft_heel" in names or params.effects.get("soft_heel", 0.0) != 0.0:
-        raise FitError("cannot fit with effects.soft_heel: the fits' collocation keeps the rigid heel "
-                       "strike; leave it out of the free parameters and at 0 in the base model")
+    # The compliant heel strike is the seed's walker's (docs/soft_feet.md section 5).
+    if ALONE in names or params.get(ALONE) != 0.0:
+        others = sorted({n for n in names if n.startswith("effects.") and n != ALONE}
+                        | {f"effects.{n}" for n in params.active_effects if f"effects.{n}" != ALONE})
+        if others:
+            raise FitError(f"cannot fit {ALONE} with {', '.join(others)}: the compliant heel "
+                           "strike models the seed's walker; leave the other effects at their null "
+                           "values and out of the free parameters")
     return names
 
 
@@ -334,11 +341,12 @@ def setup(table: TrajectoryTable, params: Params, free, *, model, offsets, n_int
     side = first_side(obs)
     n_intervals = n_intervals or _MESH[model][0]
     degree = degree or _MESH[model][1]
+    soft = ALONE in free or params.get(ALONE) != 0.0
     if model == "periodic":
-        prob = bvp(planar, n_intervals, degree, period)
+        prob = bvp(planar, n_intervals, degree, period, soft=soft)
         side, z_first = 1, gait.fixed_point
     else:
-        prob = bvp(planar, n_intervals, degree, obs.n_steps, periodic=False)
+        prob = bvp(planar, n_intervals, degree, obs.n_steps, periodic=False, soft=soft)
         # A stride's fixed point starts with the left leg in stance; a walk that starts on the
         # right starts one step later.
         z_first = gait.fixed_point if side == 1 or period == 1 else \
@@ -490,7 +498,8 @@ class FitProblem:
         self.duration_rows = np.array([prob.duration_index(j) for j in range(prob.phases)])
         durations = w[self.duration_rows]
         clock = x[self.clock_cols] if n_k else None
-        model = tm.values(w, durations, time_offset, clock) + ca.mtimes(ca.DM(b_op), off)
+        lead = strike_phase(p) if prob.soft else 0.0  # a compliant strike's phase starts each step
+        model = tm.values(w, durations, time_offset, clock, lead) + ca.mtimes(ca.DM(b_op), off)
         r_ang = (model - ca.DM(obs.value)) * inv_sd
         strikes = tm.strikes(durations, time_offset) if clock is None else clock
         self.strikes_fn = ca.Function("strikes", [x], [strikes])
@@ -969,7 +978,7 @@ class FitProblem:
             # gait (measured: a 0.055 s step beside the 0.107 s one on stable-toy).
             try:
                 walker, gait = _start(fitted, period, self.free, None)
-                prob = bvp(self.planar, *_MESH["periodic"], period)
+                prob = bvp(self.planar, *_MESH["periodic"], period, soft=self.prob.soft)
                 w = _feasible_start(prob, walker, gait.fixed_point, 1)
             except FitError as err:
                 notes.append(f"no periodic gait of the fitted walker: {err}")

@@ -12,7 +12,7 @@ import scipy.sparse as sp
 from toywalk.model.trajectory import TrajectoryTable
 
 from .fitresult import FitResult
-from .problem import continued, setup, whitened_loads
+from .problem import ALONE, continued, setup, whitened_loads
 from .residuals import shared_errors
 
 __all__ = ["held_jacobian", "score_statistics", "score_tests"]
@@ -66,15 +66,30 @@ def held_jacobian(table: TrajectoryTable, result: FitResult, names, shared: bool
     q : scipy.sparse matrix, shape (n_residuals, cells)
         With ``shared`` only: :func:`toywalk.sysid.problem.whitened_loads` of the file's shared
         errors, zero rows beyond the angles (no cells where the file has no ``*_phase_sd``).
+
+    The compliant heel strike (``effects.soft_heel``) models the seed's walker, so a fit refuses
+    it beside other effects: its column comes from a problem of its own (at the fit, with every
+    held parameter at its value, each column is the same in either).
     """
-    free = list(result.free) + list(names)
-    problem, w0 = setup(table, result.params, free, z_guess=None, check_jacobian=False,
-                         priors=result.priors, **result.options)
-    x = continued(problem, w0, result)
+    names = list(names)
+    alone = [n for n in names if n == ALONE] if len(names) > 1 else []
+    problem, x = _held_problem(table, result, [n for n in names if n not in alone])
     jac, r = problem.jacobian(x, result.sigma), problem.whitened(x, result.sigma)
+    if alone:
+        own, x_own = _held_problem(table, result, alone)
+        n_f = len(result.free)
+        at = n_f + names.index(ALONE)
+        jac = np.insert(jac, at, own.jacobian(x_own, result.sigma)[:, n_f], axis=1)
     if not shared:
         return jac, r
     return jac, r, whitened_loads(shared_errors(problem.obs), result.sigma, rows=len(r))
+
+
+def _held_problem(table: TrajectoryTable, result: FitResult, names: list):
+    """The fit's problem with ``names`` free too, and its unknowns at the fit."""
+    problem, w0 = setup(table, result.params, list(result.free) + names, z_guess=None,
+                        check_jacobian=False, priors=result.priors, **result.options)
+    return problem, continued(problem, w0, result)
 
 
 def score_statistics(jac: np.ndarray, r: np.ndarray, held, shared: sp.spmatrix | None = None) -> list[dict]:

@@ -147,6 +147,12 @@ class Effect:
         yet (a new effect whose fit support is incomplete, as ``soft_heel``'s: the collocation
         transcription keeps the rigid collision). Like a port-only term it stays in the registry
         and the parameter vector, and can be named explicitly.
+    local : bool
+        True when a score test at the null value speaks for the effect over its physical range
+        (its first-order change of the gait points where larger strengths take it). False for an
+        effect whose change of the gait is not monotonic in its strength (``soft_heel``'s: the
+        step time falls at 5 s/s from tau = 0+ and rises by 2 ms): the discrepancy analysis then
+        fits it whatever its score says (:func:`toywalk.sysid.discrepancy.diagnose`).
     """
 
     name: str = ""
@@ -159,6 +165,7 @@ class Effect:
     physics: str = ""
     port_only: bool = False
     screened: bool = True
+    local: bool = True
 
     @property
     def continuous(self) -> bool:
@@ -171,7 +178,7 @@ class Effect:
                 "bounds": list(self.bounds), "enters": self.enters,
                 "breaks_symmetry": self.breaks_symmetry, "dissipation_output": self.continuous,
                 "physics": self.physics, "port_only": self.port_only,
-                "screened": self.screened}
+                "screened": self.screened, "local": self.local}
 
     # ------------------------------------------------------------------------ hooks (neutral)
     def com_offsets(self, k: ca.SX, ctx: Context, d_st: ca.SX, d_sw: ca.SX) -> tuple[ca.SX, ca.SX]:

@@ -14,9 +14,12 @@ damping ratio (:data:`ZETA`, MuJoCo's default) and the friction coefficient (:da
 large: the rolling model's no-slip contact, regularised).
 
 The phase models the seed's walker: :class:`toywalk.model.Walker` refuses ``soft_heel`` together
-with another effect. The effect is not among the causes the discrepancy analysis tries by default
-(:attr:`Effect.screened` is False): the collocation transcription of the fits keeps the rigid
-collision.
+with another effect, and so do the fits. The fits' collocation transcription takes the phase
+(:func:`toywalk.model.collocation.soft_link`), so a fit can free tau; a fit with it costs minutes
+where a rigid one costs seconds, so it is not among the causes the discrepancy analysis tries by
+default (:attr:`Effect.screened` is False) and is named with ``--effects``. Its change of the gait
+is not monotonic in tau (:attr:`Effect.local` is False): the analysis fits it whatever its score
+test at tau = 0 says (docs/soft_feet.md section 8).
 """
 
 from __future__ import annotations
@@ -58,3 +61,4 @@ class SoftHeel(Effect):
     physics = ("the heel strike is resolved in time on spring-damper feet with time constant tau "
                "(MuJoCo's solref, critically damped), then the rolling model resumes")
     screened = False
+    local = False

@@ -47,9 +47,9 @@ def test_a_fit_says_its_stages_once_the_request_is_checked():
         fit(table, load_params(PARAMS), ["warp"], progress=said.append)
     with pytest.raises(FitError, match="not a parameter"):
         periodicity_test(table, load_params(PARAMS), ["warp"], progress=said.append)
-    # The fits' collocation keeps the rigid heel strike: the compliant one is refused.
-    with pytest.raises(FitError, match="soft_heel"):
-        fit(table, load_params(PARAMS), ["effects.soft_heel"], progress=said.append)
+    # The compliant heel strike models the seed's walker: refused beside another effect.
+    with pytest.raises(FitError, match="soft_heel with effects.hip_damping"):
+        fit(table, load_params(PARAMS), ["effects.soft_heel", "effects.hip_damping"], progress=said.append)
     assert said == []
 
 
