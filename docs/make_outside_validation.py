@@ -1,7 +1,7 @@
 """Measure what the discrepancy analysis says of walks whose physics lies outside its library.
 
     python docs/make_outside_validation.py KIND [SEED ...] [--out CSV] [--walks DIR] [--walks-only]
-        -> docs/outside_KIND.csv
+        [--effects NAMES] -> docs/outside_KIND.csv
 
 KIND is one of the generators of tests/sysid/outside.py: ``contact`` (the clearing walker in
 MuJoCo with soft, overdamped, slipping contacts), ``hinge_spring`` (the stable toy with a torsion
@@ -25,6 +25,11 @@ its likelihood ratio; where no cause was named, what the search of the port dict
 why it stopped; the seconds the analysis took and its evidence (why that verdict). A walk
 that cannot be made (the clearing walker falls in MuJoCo from some starts) is a row with verdict
 ``no walk`` and the reason.
+
+``--effects`` gives the candidate effects (comma-separated, ``library`` for the library's; the
+default is the library): ``--effects library,soft_heel`` adds the compliant heel strike, which
+the analysis does not try by default. A column ``requested`` then says, for each effect named
+beyond the library, its score, and its fit where it was fitted.
 
 ``--walks DIR`` keeps the walks as trajectory files (``KIND_SEED.csv``) and reads them from there
 when present, so that the same walks can be analysed by another version of the analysis
@@ -63,10 +68,10 @@ COLUMNS = ["seed", "verdict", "cause", "causes", "candidate", "candidate_named",
            "runner_up", "runner_up_lr", "missing_force", "missing_force_stop", "seconds", "evidence"]
 
 
-def _append(path: Path, row: dict) -> None:
+def _append(path: Path, row: dict, columns: list = COLUMNS) -> None:
     new = not path.exists()
     with open(path, "a", newline="") as fh:
-        writer = csv.DictWriter(fh, fieldnames=COLUMNS, restval="")
+        writer = csv.DictWriter(fh, fieldnames=columns, restval="")
         if new:
             writer.writeheader()
         writer.writerow(row)
@@ -88,6 +93,23 @@ def _get(kind: str, seed: int, walks: Path | None):
 
 def _fmt(value) -> str:
     return "" if value is None or (isinstance(value, float) and math.isnan(value)) else f"{value:.6g}"
+
+
+def requested(d, names) -> str:
+    """What the analysis ``d`` says of each effect in ``names``: its score z, and where it was
+    fitted its estimate, standard error, likelihood ratio and IPOPT's status."""
+    out = []
+    for row in d.ranking:
+        if row["effect"] not in names:
+            continue
+        text = f"{row['effect']}: score z {row['score_z']:+.2f}"
+        if "estimate" in row:
+            text += (f"; fitted {row['estimate'][row['effect']]:.4g} +- {row['std']:.2g}, "
+                     f"lr {row['lr']:.4g} ({row['status']})")
+        elif row.get("reason"):
+            text += f"; not fitted: {row['reason']}"
+        out.append(text)
+    return " | ".join(out)
 
 
 def row_of(seed: int, d, seconds: float) -> dict:
@@ -126,7 +148,16 @@ def main(argv=None) -> None:
     parser.add_argument("--out", type=Path, help="the table (default docs/outside_KIND.csv)")
     parser.add_argument("--walks", type=Path, help="keep (and reuse) the walks in this folder")
     parser.add_argument("--walks-only", action="store_true", help="make the walks, do not analyse them")
+    parser.add_argument("--effects", help="candidate effects, comma-separated ('library': the library's)")
     args = parser.parse_args(argv)
+    from toywalk.model.effects import LIBRARY
+
+    effects = None
+    if args.effects:
+        effects = [e for name in args.effects.split(",")
+                   for e in (LIBRARY if name.strip() == "library" else (name.strip(),))]
+    beyond = [f"effects.{e}" for e in effects or () if e not in LIBRARY]
+    columns = COLUMNS + (["requested"] if beyond else [])
     if args.walks_only and args.walks is None:
         parser.error("--walks-only needs --walks DIR")
     out = args.out or HERE / f"outside_{args.kind}.csv"
@@ -153,10 +184,14 @@ def main(argv=None) -> None:
             print(seed, "walk made", flush=True)
             continue
         clock = time.perf_counter()
-        d = diagnose(table, params, model="periodic", free=FREE, workers=1)
+        d = diagnose(table, params, model="periodic", free=FREE, workers=1, effects=effects,
+                     progress=lambda line: print("  ...", line, flush=True))
         row = row_of(seed, d, time.perf_counter() - clock)
-        _append(out, row)
-        print(seed, row["verdict"], row["cause"], row["candidate"], row["lr"], row["seconds"], flush=True)
+        if beyond:
+            row["requested"] = requested(d, beyond)
+        _append(out, row, columns)
+        print(seed, row["verdict"], row["cause"], row["candidate"], row["lr"], row.get("requested", ""),
+              row["seconds"], flush=True)
 
 
 if __name__ == "__main__":
