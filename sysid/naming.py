@@ -123,9 +123,11 @@ def candidates(params: Params, free=(), effects=None, parameters=None) -> list[C
     parameters of :data:`PARAMETERS` (or ``parameters``), less the free ones and those that
     cannot move (both bounds at the base value). The port-only terms of the registry
     (:data:`toywalk.model.effects.PORTS`) are candidates only where ``effects`` names them, and
-    the compliant heel strike (``soft_heel``) only where no other effect is on or free."""
+    the compliant heel strike (``soft_heel``) only where no other effect is on or free.
+    ``library`` in ``effects`` stands for the library's effects (``library,soft_heel``)."""
     names = []
-    chosen = list(LIBRARY) if effects is None else list(effects)
+    chosen = list(LIBRARY) if effects is None else [
+        e for name in effects for e in (LIBRARY if name == "library" else (name,))]
     for name in chosen:
         if name.removeprefix("effects.") not in EFFECTS:
             raise DiagnoseError(f"unknown effect {name!r}; the library has {', '.join(EFFECTS)}")

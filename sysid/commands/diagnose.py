@@ -26,7 +26,8 @@ def register(subparsers) -> None:
                         "condition), in their order, or one for all")
     p.add_argument("--free", default="", help="base parameters to fit (comma-separated names)")
     p.add_argument("--effects", help="restrict the candidate effects (comma-separated names; none: "
-                                     "no library effect)")
+                                     "no library effect; library: the library's, as in "
+                                     "library,soft_heel)")
     p.add_argument("--parameters",
                    help="held parameters that are candidate causes (comma-separated; default: "
                         "foot radii, mass offsets, hip width, slope; none: no parameter; with "

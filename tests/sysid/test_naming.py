@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 from toywalk.model import load_params
-from toywalk.model.effects import EFFECTS
+from toywalk.model.effects import EFFECTS, LIBRARY
 from toywalk.model.trajectory import TrajectoryTable
 from toywalk.sysid.measurement import observations
 from toywalk.sysid.naming import (
@@ -15,6 +15,7 @@ from toywalk.sysid.naming import (
     Candidate,
     Explanation,
     candidates,
+    compatible,
     decide,
     feature_p,
     judge,
@@ -191,3 +192,19 @@ def test_no_causes_asked_for_leaves_only_the_missing_forces_search(tmp_path):
         diagnose_walks([table], [params], effects=[], parameters=[])
     with pytest.raises(DiagnoseError, match="all free or fixed"):
         candidates(params, free=["slope"], effects=[], parameters=["slope"])
+
+
+def test_the_soft_heel_is_a_candidate_on_the_seed_s_walker_only():
+    """``library`` stands for the library's effects, so ``library,soft_heel`` adds the compliant
+    heel strike, which the fits take only with no other effect on or free: it is left out beside
+    an effect, and a pair of it and an effect is never fitted."""
+    params = load_params(DATA / "params" / "clearing-toy.toml")
+    names = [c.name for c in candidates(params, [], ["library", "soft_heel"], [])]
+    assert names == [f"effects.{e}" for e in LIBRARY] + ["effects.soft_heel"]
+    assert "effects.soft_heel" not in [c.name for c in candidates(params, [], None, [])]
+    damped = params.replace(**{"effects.hip_damping": 1e-4})
+    assert "effects.soft_heel" not in [c.name for c in candidates(damped, [], ["library", "soft_heel"], [])]
+    assert "effects.soft_heel" not in [c.name for c in candidates(params, ["effects.hip_damping"],
+                                                                  ["soft_heel"], None)]
+    assert not compatible("effects.soft_heel", "effects.hip_damping")
+    assert compatible("effects.soft_heel", "com_offset[0]") and compatible("slope", "effects.hip_damping")

@@ -4,7 +4,6 @@ the clearing toy simulated on soft feet (the simulator's phase is the step map's
 its own path; the fit's collocation reads samples inside the phase off the flow continued back,
 so the two differ by O(tau) in the angles there)."""
 
-import numpy as np
 import pytest
 from toywalk.model import find_gait
 from toywalk.model.parameters import load_params
