@@ -1,7 +1,7 @@
 """Long walks on soft feet: the model with the compliant heel strike against MuJoCo with the
 same contact (docs/soft_feet.md section 7).
 
-    OPENBLAS_NUM_THREADS=1 MUJOCO_GL=egl .venv/bin/python docs/make_soft_heel_walks.py   # about 8 min
+    OPENBLAS_NUM_THREADS=1 MUJOCO_GL=egl .venv/bin/python docs/make_soft_heel_walks.py   # about 6 min
 
 For the clearing toy (data/params/clearing-toy.toml) and stable-toy (data/params/stable-toy.toml),
 at contact time constants tau = 1, 2 and 4 ms, from the rigid model's gait (``find_gait``) and
@@ -19,8 +19,11 @@ does between strikes (the stance foot's slip per step, its penetration, the shar
 carries no load, the mechanical energy it loses per flow) and the model run from MuJoCo's states
 (``touchdown_predictions``): one step (the model's flow against MuJoCo's), two steps (the model's
 strike in place of MuJoCo's once), and a whole walk from MuJoCo's state after its first strike.
-Then, on the clearing toy at 1 ms, MuJoCo with one setting changed at a time (time step,
-friction, impedance). Prints Markdown tables; writes docs/soft_heel_walks.csv (one row per walk)
+Then, on the clearing toy: section 6's isolated heel strike carried one step by the model's
+flow, and the model walked with MuJoCo's strike as a constant offset to its own (the difference of
+the two strikes' states 10 tau after touchdown, added after every step), at the flat impedances
+d = 0.9999, 0.5 and 1e-4; and at 1 ms MuJoCo's walk with one setting changed at a time (time
+step, friction, impedance). Prints Markdown tables; writes docs/soft_heel_walks.csv (one row per walk)
 and docs/soft_heel_walks.png (step time against step number, clearing toy).
 """
 
@@ -58,7 +61,11 @@ VARIANT_TAU = 1e-3
 VARIANTS = {"time step tau / 10": {"timestep": VARIANT_TAU / 10},
             "time step tau / 100": {"timestep": VARIANT_TAU / 100},
             "friction 2": {"friction": 2.0},
-            "walking impedance": {"solimp": None}}
+            "walking impedance": {"solimp": None},
+            "impedance d = 0.5": {"solimp": (0.5, 0.5, 0.001)},
+            "impedance d = 0.0001": {"solimp": (1e-4, 1e-4, 0.001)}}
+# Flat impedances d (solimp = (d, d, 1 mm)) for the isolated strike besides STRIKE_SOLIMP's 0.9999.
+IMPEDANCES = (0.5, 1e-4)
 FIELDS = ("walker", "engine", "tau_ms", "setting", "start", "kick", "seed", "steps", "fell", "scuffs",
           "step_time_ms", "step_time_rms", "heading_deg", "lateral_mm_per_step", "flow_error_ms",
           "flow_error_rms_ms", "strike_error_ms", "strike_error_rms_ms", "rigid_strike_error_ms",
@@ -117,29 +124,31 @@ def contact_numbers(walk, params, tau):
         if len(inside) > 1:
             energy.append(walk.energy[inside[-1]] - walk.energy[inside[0]])
     dt = 1.0 / SAMPLE_RATE
+    def mean(x):
+        return float(np.mean(x[np.isfinite(x)])) if np.any(np.isfinite(x)) else math.nan
+
     flow = touchdown_predictions(walk, params.replace(**{SOFT: 0.0}), SPAN * tau)
     strike = touchdown_predictions(walk, params.replace(**{SOFT: tau}), SPAN * tau, steps=2)
     rigid = touchdown_predictions(walk, params.replace(**{SOFT: 0.0}), SPAN * tau, steps=2)
-    return {"flow_error_ms": 1e3 * np.nanmean(flow),
-            "flow_error_rms_ms": 1e3 * np.sqrt(np.nanmean(flow ** 2)),
-            "strike_error_ms": 1e3 * np.nanmean(strike),
-            "strike_error_rms_ms": 1e3 * np.sqrt(np.nanmean(strike ** 2)),
-            "rigid_strike_error_ms": 1e3 * np.nanmean(rigid),
+    return {"flow_error_ms": 1e3 * mean(flow), "flow_error_rms_ms": 1e3 * math.sqrt(mean(flow ** 2)),
+            "strike_error_ms": 1e3 * mean(strike), "strike_error_rms_ms": 1e3 * math.sqrt(mean(strike ** 2)),
+            "rigid_strike_error_ms": 1e3 * mean(rigid),
             "slip_um_per_step": 1e6 * dt * walk.slip_speed[flows].sum() / max(walk.steps, 1),
             "penetration_um": 1e6 * np.median(walk.penetration[flows]),
             "unloaded_share": float(np.mean(walk.stance_force[flows] == 0.0)),
-            "flow_energy_mJ": 1e3 * np.mean(energy)}
+            "flow_energy_mJ": 1e3 * np.mean(energy) if energy else math.nan}
 
 
-def isolated_strike(params, z_gait, tau, substeps):
+def isolated_strike(params, z_gait, tau, substeps, solimp=STRIKE_SOLIMP):
     """Section 6's single heel strike, both engines from the gait's heel strike: MuJoCo's state 10
     tau after touchdown less the model's (the public state, mirrored: the right leg in stance;
-    shape (8,)), with MuJoCo's RK4 at ``tau / (20 substeps)``, and the next step's time from the
+    shape (8,)), with MuJoCo's RK4 at ``tau / (20 substeps)`` and impedance ``solimp``, and the
+    next step's time from the
     two states by the model's flow, MuJoCo's less the model's (ms)."""
     rigid = Walker(params)
     z_minus = rigid.step(z_gait).z_minus
     model = Walker(params.replace(**{SOFT: tau})).step(z_gait).z_plus  # 10 tau after touchdown
-    strike = strike_in_mujoco(params, z_minus, tau, substeps=substeps)
+    strike = strike_in_mujoco(params, z_minus, tau, substeps=substeps, solimp=solimp)
     (lean, steer, left, right), rates = strike.angles[-1], strike.rates[-1]
     mujoco = np.array([-steer, -rates[1], -lean, -rates[0], right, rates[3], left, rates[2]])
     later = rigid.step(mujoco, side=-1).step_time - rigid.step(model, side=-1).step_time
@@ -207,7 +216,7 @@ def main() -> None:
                 times, s = model_walk(soft, z0, n)
                 log({**common, "engine": "model", **s})
                 walk, s = mujoco_walk(params, z0, n, tau)
-                extra = contact_numbers(walk, params, tau) if kick == 0.0 and walk.steps > 2 else {}
+                extra = contact_numbers(walk, params, tau) if kick == 0.0 and walk.steps else {}
                 log({**common, "engine": "MuJoCo", **s, **extra})
                 if kick == 0.0:
                     series[name, "model", tau] = times
@@ -226,7 +235,7 @@ def main() -> None:
             if setting == "time step tau / 100" and kick:
                 continue  # ten minutes; the gait's walk says enough
             walk, s = mujoco_walk(params, z0, n, VARIANT_TAU, **options)
-            extra = contact_numbers(walk, params, VARIANT_TAU) if kick == 0.0 and walk.steps > 2 else {}
+            extra = contact_numbers(walk, params, VARIANT_TAU) if kick == 0.0 and walk.steps else {}
             log({"walker": "clearing-toy", "engine": "MuJoCo", "tau_ms": 1e3 * VARIANT_TAU,
                  "setting": setting, "start": "gait" if kick == 0.0 else "kicked", "kick": kick,
                  "seed": seed, **s, **extra})
@@ -252,6 +261,16 @@ def main() -> None:
             masked[keep] = offset[keep]
             times, fell = offset_walk(params, gait.fixed_point, tau, masked, GAIT_STEPS)
             print(f"|   {part} | | | | {len(times)}{' (fell)' if fell else ''} | {1e3 * times.mean():.2f} "
+                  f"| {times.std() / times.mean():.4f} |", flush=True)
+    print("\nThe isolated strike at other flat impedances d: the next step (ms) and the model walked "
+          "with the offset:\n")
+    print("| d | tau (ms) | next step (ms) | offset walk: steps | step-time rms |")
+    print("| --- " * 5 + "|")
+    for d in IMPEDANCES:
+        for tau in TAUS:
+            offset, later = isolated_strike(params, gait.fixed_point, tau, 20, (d, d, 0.001))
+            times, fell = offset_walk(params, gait.fixed_point, tau, offset, GAIT_STEPS)
+            print(f"| {d:g} | {tau * 1e3:g} | {later:+.3f} | {len(times)}{' (fell)' if fell else ''} "
                   f"| {times.std() / times.mean():.4f} |", flush=True)
     _write(rows)
     _tables(rows)
