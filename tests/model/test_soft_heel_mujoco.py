@@ -136,3 +136,15 @@ def test_in_a_walk_the_model_follows_mujocos_flow_but_not_its_strike(short_walk)
     soft = params.replace(**{"effects.soft_heel": WALK_TAU})
     strike = touchdown_predictions(walk, soft, 10 * WALK_TAU, steps=2)
     assert 0.75e-3 < np.nanmean(strike) < 2.25e-3, strike
+
+
+def test_touchdown_predictions_refuse_bad_arguments(short_walk):
+    """A walk that is not a MujocoWalk, a negative delay or a step count below 1 is refused,
+    naming the argument."""
+    params, _, walk = short_walk
+    with pytest.raises(TypeError, match="walk"):
+        touchdown_predictions(walk.times, params, 0.01)
+    with pytest.raises(ValueError, match="delay"):
+        touchdown_predictions(walk, params, -0.01)
+    with pytest.raises(ValueError, match="steps"):
+        touchdown_predictions(walk, params, 0.01, steps=0)
