@@ -53,10 +53,11 @@ from .files import software_version as _version
 from .kinematics import angles_from_rotations, leg_poses, rotation
 from .parameters import PARAMETER_NAMES, Params
 from .trajectory import SIGNALS, TrajectoryTable
-from .walker import STATE_NAMES
+from .walker import STATE_NAMES, StepFailure, Walker
 
 __all__ = ["STRIKE_SOLIMP", "MujocoStrike", "MujocoWalk", "build_mjcf", "impact_pulse", "initial_state",
-           "mujoco_trajectory", "strike_differences", "strike_in_mujoco", "walk_in_mujoco"]
+           "mujoco_trajectory", "strike_differences", "strike_in_mujoco", "touchdown_predictions",
+           "walk_in_mujoco"]
 
 # Contacts: the solver's time constant (s), critically damped. 1 ms is a few times shorter than
 # anything the walkers do (steps of 0.1 s and more) and long enough that the heel strike is plastic:
@@ -320,6 +321,19 @@ class MujocoWalk:
         ``contact_time_constant`` (s), ``contact_damping_ratio``, ``solimp``, ``integrator``,
         ``cone``, ``impratio``, ``noslip_iterations``, ``condim``, ``sample_rate`` (Hz), and
         where the foot is not the default spheroid ``foot_axes`` (m) and ``foot_pitch`` (rad).
+    rates : ndarray, shape (n_samples, 4)
+        The angles' rates (rad/s), from the left leg's angular velocity and the hinge's rate.
+    stance_force : ndarray, shape (n_samples,)
+        The stance foot's normal contact force (N; 0 where its contact is off: chatter, or the
+        foot in the air).
+    penetration : ndarray, shape (n_samples,)
+        The stance foot's penetration: minus its lowest point's height over the ramp (m).
+    slip_speed : ndarray, shape (n_samples,)
+        The speed along the ramp of the stance foot's material point at its lowest point (m/s):
+        0 for the model's rolling contact.
+    energy : ndarray, shape (n_samples,)
+        The walker's mechanical energy, kinetic and gravitational (J; MuJoCo's ``mj_energyPos``
+        and ``mj_energyVel``): constant between heel strikes in the model.
     """
 
     status: str
@@ -337,11 +351,27 @@ class MujocoWalk:
     contact: np.ndarray
     start: np.ndarray
     settings: dict
+    rates: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 4)))
+    stance_force: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
+    penetration: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
+    slip_speed: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
+    energy: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
 
     @property
     def lean(self) -> np.ndarray:
         """Lean psi at the samples (rad), shape (n_samples,)."""
         return self.angles[:, 0]
+
+    def public_state(self, i: int) -> np.ndarray:
+        """The model's public state at sample ``i`` (docs/model.md section 1), in the step map's
+        mirrored description (stance leg the left; the sample's stance foot is taken as stance):
+        ``(phi, phi', psi, psi', theta_st, theta_st', theta_sw, theta_sw')``, shape (8,). At sample 0
+        it is :attr:`start`."""
+        lean, steer, left, right = self.angles[i]
+        lean_rate, steer_rate, left_rate, right_rate = self.rates[i]
+        if self.stance[i] == "L":
+            return np.array([steer, steer_rate, lean, lean_rate, left, left_rate, right, right_rate])
+        return np.array([-steer, -steer_rate, -lean, -lean_rate, right, right_rate, left, left_rate])
 
     @property
     def steer(self) -> np.ndarray:
@@ -406,6 +436,21 @@ def _lowest_offset(params: Params, rot: np.ndarray, foot: _Foot | None = None) -
     return -a_mat[:, 2] / math.sqrt(a_mat[2, 2])
 
 
+def _angles_and_rates(data, left: int, right: int) -> tuple[np.ndarray, np.ndarray]:
+    """(lean, steer, pitch_left, pitch_right) (rad) and their rates (rad/s) of MuJoCo's walker,
+    physical frame: the angles from the legs' frames (:func:`angles_from_rotations`), the rates
+    from the left leg's angular velocity (``omega = phi' e_z + psi' a_1 + theta_left' n``, the
+    axes of the turns) and the hinge's rate."""
+    rot_left, rot_right = data.xmat[left].reshape(3, 3), data.xmat[right].reshape(3, 3)
+    steer, lean, pitch_left, pitch_right = angles_from_rotations(rot_left, rot_right)
+    omega = rot_left @ data.qvel[3:6]  # the left leg's angular velocity, ramp frame
+    axes = np.column_stack([[0.0, 0.0, 1.0], rotation(steer, 0.0, 0.0)[:, 0],
+                            rotation(steer, lean, 0.0)[:, 1]])
+    steer_rate, lean_rate, left_rate = np.linalg.solve(axes, omega)
+    return (np.array([lean, steer, pitch_left, pitch_right]),
+            np.array([lean_rate, steer_rate, left_rate, left_rate + data.qvel[6]]))
+
+
 def initial_state(params: Params, z0: np.ndarray, foot_axes=None,
                   foot_pitch: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """MuJoCo's (qpos, qvel) for the public state ``z0`` just after a heel strike, left leg in
@@ -440,7 +485,8 @@ def _quaternion(rot: np.ndarray) -> np.ndarray:
 def walk_in_mujoco(params: Params, z0: np.ndarray, steps: int = 20, timestep: float = 1e-4,
                    friction: float = 2.0, max_time: float | None = None,
                    sample_rate: float = 1000.0, contact_time: float = _CONTACT_TIME,
-                   damping_ratio: float = 1.0, foot_axes=None, foot_pitch: float = 0.0) -> MujocoWalk:
+                   damping_ratio: float = 1.0, foot_axes=None, foot_pitch: float = 0.0,
+                   solimp=None) -> MujocoWalk:
     """Start the MuJoCo walker at the public state ``z0`` (just after a heel strike, left leg in
     stance) and run it until ``steps`` heel strikes after the start, a fall, or ``max_time``.
 
@@ -460,9 +506,10 @@ def walk_in_mujoco(params: Params, z0: np.ndarray, steps: int = 20, timestep: fl
     sample_rate : float
         Samples of the angles per second (Hz); ``1 / sample_rate`` must be a whole number of
         integration steps.
-    contact_time, damping_ratio, foot_axes, foot_pitch
+    contact_time, damping_ratio, foot_axes, foot_pitch, solimp
         The contacts' time constant (s) and damping ratio, the foot's semi-axes (m) and turn
-        (rad), as in :func:`build_mjcf`; the defaults are the build checked against the model.
+        (rad), the contacts' impedance, as in :func:`build_mjcf`; the defaults are the build
+        checked against the model.
 
     Returns
     -------
@@ -480,7 +527,9 @@ def walk_in_mujoco(params: Params, z0: np.ndarray, steps: int = 20, timestep: fl
                          f"got sample_rate {sample_rate!r} Hz")
     sole = _foot(params, foot_axes, foot_pitch)
     model = mujoco.MjModel.from_xml_string(
-        build_mjcf(params, timestep, friction, contact_time, damping_ratio, sole.axes, sole.pitch))
+        build_mjcf(params, timestep, friction, contact_time, damping_ratio, sole.axes, sole.pitch,
+                   solimp))
+    impedance = _impedance(_SOLIMP if solimp is None else solimp)
     data = mujoco.MjData(model)
     data.qpos[:], data.qvel[:] = initial_state(params, z0, sole.axes, sole.pitch)
     mujoco.mj_forward(model, data)
@@ -495,13 +544,26 @@ def walk_in_mujoco(params: Params, z0: np.ndarray, steps: int = 20, timestep: fl
     samples: list[tuple[float, ...]] = []
     stances: list[str] = []
 
+    geom_of = {foot: geom for geom, foot in foot_of.items()}
+    force, jac = np.zeros(6), np.zeros((3, model.nv))
+
     def sample() -> None:
         stance = landed[-1] if landed else "L"
-        rot = {k: data.xmat[b].reshape(3, 3) for k, b in bodies.items()}
-        steer, lean, pitch_left, pitch_right = angles_from_rotations(rot["L"], rot["R"])
+        rot = data.xmat[bodies[stance]].reshape(3, 3)
+        angles, rates = _angles_and_rates(data, left, right)
         low = (_foot_position(data, model, bodies[stance], params, sole)
-               + _lowest_offset(params, rot[stance], sole))
-        samples.append((data.time, lean, steer, pitch_left, pitch_right, low[0], low[1]))
+               + _lowest_offset(params, rot, sole))
+        normal = 0.0
+        for i in range(data.ncon):
+            if geom_of[stance] in data.contact.geom[i]:
+                mujoco.mj_contactForce(model, data, i, force)
+                normal += force[0]
+        mujoco.mj_jac(model, data, jac, None, low, bodies[stance])  # the material point at low
+        slip = jac @ data.qvel
+        mujoco.mj_energyPos(model, data)
+        mujoco.mj_energyVel(model, data)
+        samples.append((data.time, *angles, low[0], low[1], *rates, normal, -low[2],
+                        math.hypot(slip[0], slip[1]), data.energy[0] + data.energy[1]))
         stances.append(stance)
 
     scuffs, n_step = 0, 0
@@ -546,14 +608,15 @@ def walk_in_mujoco(params: Params, z0: np.ndarray, steps: int = 20, timestep: fl
     table = np.array(samples)
     settings = {"engine": f"MuJoCo {mujoco.__version__}", "timestep": timestep, "friction": friction,
                 "contact_time_constant": contact_time, "contact_damping_ratio": damping_ratio,
-                "solimp": list(_SOLIMP), **_SOLVER, "condim": 3, "sample_rate": sample_rate}
+                "solimp": list(impedance), **_SOLVER, "condim": 3, "sample_rate": sample_rate}
     if foot_axes is not None or foot_pitch:
         settings["foot_axes"], settings["foot_pitch"] = list(sole.axes), sole.pitch
     return MujocoWalk(status=status, message=message, strikes=arr, feet=landed, scuffs=scuffs,
                       steps=n_alt - 1, step_times=np.diff(good[:, 0]), step_lengths=np.diff(good[:, 1]),
                       duration=float(data.time), times=table[:, 0], angles=table[:, 1:5],
                       stance=np.array(stances), contact=table[:, 5:7], start=z0.copy(),
-                      settings=settings)
+                      settings=settings, rates=table[:, 7:11], stance_force=table[:, 11],
+                      penetration=table[:, 12], slip_speed=table[:, 13], energy=table[:, 14])
 
 
 def _foot_position(data, model, body: int, params: Params, foot: _Foot) -> np.ndarray:
@@ -614,6 +677,59 @@ def mujoco_trajectory(walk: MujocoWalk, params: Params, parameters: str | None =
         "software": _version(),
     }
     return TrajectoryTable(walk.times, signals, walk.stance, events, metadata)
+
+
+def touchdown_predictions(walk: MujocoWalk, params: Params, delay: float, steps: int = 1) -> np.ndarray:
+    """The model against MuJoCo one step at a time: from MuJoCo's state at the first sample
+    ``delay`` or more after each heel strike of the walk (the start the first;
+    :meth:`MujocoWalk.public_state`), ``steps`` of the model's steps (:meth:`Walker.step`), and
+    the time of the last heel strike they reach against MuJoCo's.
+
+    With ``steps`` = 1 and ``delay`` past the strike's contact phase (10 contact time constants)
+    both walkers roll on their stance foot throughout, so the difference is what MuJoCo's
+    continuous contact (creep, chatter, penetration, the trailing foot's last touch) does over one
+    flow. With ``steps`` = 2 the model's own heel strike (rigid, or compliant with
+    ``effects.soft_heel``) replaces MuJoCo's once.
+
+    Parameters
+    ----------
+    walk : MujocoWalk
+    params : Params
+        The model walker (with ``effects.soft_heel`` on, the touchdown is predicted, before the phase).
+    delay : float
+        Time after a heel strike at which the model takes over (s).
+    steps : int
+        The model's steps from there.
+
+    Returns
+    -------
+    ndarray, shape (walk.steps,)
+        MuJoCo's heel strike ``steps`` after the start's less the model's (s); NaN where no sample
+        lies before MuJoCo's next heel strike, MuJoCo's walk ends first, or the model's step fails
+        (:class:`StepFailure`).
+    """
+    if not isinstance(walk, MujocoWalk):
+        raise TypeError(f"walk must be a MujocoWalk, got {type(walk).__name__}")
+    if not (math.isfinite(delay) and delay >= 0.0):
+        raise ValueError(f"delay must be a finite time >= 0 (s), got {delay!r}")
+    if not (isinstance(steps, int) and steps >= 1):
+        raise ValueError(f"steps must be an integer >= 1, got {steps!r}")
+    walker = Walker(params)
+    strikes = np.r_[0.0, walk.strikes[:walk.steps, 0]]
+    out = np.full(walk.steps, np.nan)
+    for k in range(walk.steps + 1 - steps):
+        i = int(np.searchsorted(walk.times, strikes[k] + delay))
+        if i >= len(walk.times) or walk.times[i] >= strikes[k + 1]:
+            continue
+        z, t, side = walk.public_state(i), walk.times[i], 1 if walk.stance[i] == "L" else -1
+        try:
+            for _ in range(steps):
+                step = walker.step(z, side=side)
+                t, z, side = t + step.step_time, step.z_plus, -side
+        except StepFailure:
+            continue
+        out[k] = strikes[k + steps] - (t - step.strike_phase)
+    return out
 
 
 @dataclasses.dataclass
@@ -729,13 +845,7 @@ def strike_in_mujoco(params: Params, z_minus: np.ndarray, tau: float, zeta: floa
         rot = [data.xmat[b].reshape(3, 3) for b in bodies]
         depth = [-(_foot_position(data, model, b, params, sole) + _lowest_offset(params, r, sole))[2]
                  for b, r in zip(bodies, rot, strict=True)]
-        steer, lean, pitch_left, pitch_right = angles_from_rotations(*rot)
-        omega = rot[0] @ data.qvel[3:6]  # the left leg's angular velocity, ramp frame
-        axes = np.column_stack([[0.0, 0.0, 1.0], rotation(steer, 0.0, 0.0)[:, 0],
-                                rotation(steer, lean, 0.0)[:, 1]])
-        steer_rate, lean_rate, left_rate = np.linalg.solve(axes, omega)
-        rows.append((data.time, *force, *depth, lean, steer, pitch_left, pitch_right,
-                     lean_rate, steer_rate, left_rate, left_rate + data.qvel[6]))
+        rows.append((data.time, *force, *depth, *np.concatenate(_angles_and_rates(data, *bodies))))
 
     sample()
     for _ in range(steps_per_tau * span):
