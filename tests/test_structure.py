@@ -310,3 +310,19 @@ def test_the_sysid_package_exports_its_main_names_as_objects_not_modules():
     for name in sysid.__all__:
         assert not isinstance(getattr(sysid, name), types.ModuleType), name
     assert callable(sysid.diagnose) and sysid.Diagnosis.__name__ == "Diagnosis"
+
+
+def test_a_public_name_shared_with_its_submodule_stays_the_object_whatever_was_imported_first():
+    """`toywalk.model.simulate` is a function and a submodule: once the submodule is imported
+    (by `from toywalk.model.simulate import gait_walk`, say), the import system sets the
+    package's attribute to the module, and `from toywalk.model import simulate` gave the module
+    in a fresh interpreter (the order the tests ran in decided it). Checked in a fresh one."""
+    import subprocess
+    import sys
+
+    code = ("from toywalk.model.simulate import gait_walk\n"
+            "from toywalk.model import simulate\n"
+            "import toywalk.model as m\n"
+            "assert callable(simulate) and m.simulate is simulate and callable(gait_walk), simulate\n")
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr
