@@ -108,9 +108,9 @@ def test_collocation_strike_is_the_rigid_one_at_null_with_the_one_sided_slope(cl
 @pytest.mark.parametrize("name", ["seed-pointfoot", "compass-3d", "stable-toy", "clearing-toy"])
 def test_null_is_the_rigid_model_bit_for_bit(name):
     """Point (seed-pointfoot), sphere (compass-3d), torus (stable-toy, clearing-toy) feet: with
-    soft_heel = 0 named in the file the gait, its eigenvalues and a 30-step walk from a perturbed start are the rigid
-    model's bit for bit (the same code path; the rigid model itself is checked against the
-    seed's equations in tests/model/test_effects.py). A contact time of 1e-7 s changes them: the
+    soft_heel = 0 named in the file the gait, its eigenvalues and a 30-step walk from a
+    perturbed start are the rigid model's bit for bit (the same code path; the rigid model
+    itself is checked against the seed's equations in tests/model/test_effects.py). A contact time of 1e-7 s changes them: the
     comparison can fail."""
     rigid = _load(name)
     null = rigid.replace(**{SOFT: 0.0})
