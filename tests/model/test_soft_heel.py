@@ -110,8 +110,8 @@ def test_null_is_the_rigid_model_bit_for_bit(name):
     """Point (seed-pointfoot), sphere (compass-3d), torus (stable-toy, clearing-toy) feet: with
     soft_heel = 0 named in the file the gait, its eigenvalues and a 30-step walk from a
     perturbed start are the rigid model's bit for bit (the same code path; the rigid model
-    itself is checked against the seed's equations in tests/model/test_effects.py). A contact time of 1e-7 s changes them: the
-    comparison can fail."""
+    itself is checked against the seed's equations in tests/model/test_effects.py). A contact
+    time of 1e-7 s changes them: the comparison can fail."""
     rigid = _load(name)
     null = rigid.replace(**{SOFT: 0.0})
     assert null.effects["soft_heel"] == 0.0 and "soft_heel" not in rigid.effects
