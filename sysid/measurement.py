@@ -579,6 +579,17 @@ class Timing:
         """The model's heel-strike times, from the first measured one (s)."""
         return time_offset + _dot(self.strikes_before, durations)
 
+    def aligned(self, w, lead):
+        """The model's angle at every observation read at its measured phase (as
+        :meth:`at_phases`), each step's flow starting ``lead`` (s, a CasADi expression: a
+        compliant strike's phase, :meth:`local`) after its measured strike: a read at the measured
+        time ``t`` into a step of measured duration ``D`` takes the flow at ``(t - lead) / (D -
+        lead)`` of its span (continued back inside the phase)."""
+        span = self.strike_rel[self.step + 1] - self.strike_rel[self.step]
+        local = (self.phase * span - lead) / (span - lead) * self.n_int - self.interval
+        weights = lagrange_weights(self.nodes, local)
+        return self._samples(sum(weight * _dot(b, w) for weight, b in zip(weights, self.basis, strict=True)))
+
     def at_phases(self) -> sp.csr_matrix:
         """The linear map (n_obs, n_w) reading each observation at its measured phase, the model's
         strikes on the measured ones (:func:`operator`)."""

@@ -514,8 +514,8 @@ class FitProblem:
         # time offset and the step durations has other minima (measured: a start at the Tinkertoy's
         # foot radius ended at chi-square 1.4e6 instead of 484); aligned step by step it has not,
         # and from its solution the second stage only refines.
-        a_op = tm.at_phases()
-        model_aligned = ca.mtimes(ca.DM(sp.csc_matrix(a_op)), w) + ca.mtimes(ca.DM(b_op), off)
+        read = tm.aligned(w, lead) if prob.soft else ca.mtimes(ca.DM(sp.csc_matrix(tm.at_phases())), w)
+        model_aligned = read + ca.mtimes(ca.DM(b_op), off)
         r_ang_aligned = (model_aligned - ca.DM(obs.value)) * inv_sd
         per_step = ca.vertcat(*[w[prob.duration_index(int(j))] for j in model_step])
         r_dur_aligned = (per_step - ca.DM(obs.durations)) / ca.DM(obs.duration_sd)

@@ -18,7 +18,8 @@ __all__ = ["RECOVERED", "grid_observations", "simulated_walk", "start_off", "wal
 
 def simulated_walk(params, steps, noise, seed, gait=None, steps_per_time_unit=16, z0=None):
     """A simulated walk from the gait (or from ``z0``), as a measured trajectory (angles with
-    noise, heel strikes including the one the walk starts from), like `toywalk simulate --noise`.
+    noise, heel strikes including the one the walk starts from, except on soft feet), like
+    `toywalk simulate --noise`.
 
     Parameters
     ----------
@@ -47,7 +48,10 @@ def simulated_walk(params, steps, noise, seed, gait=None, steps_per_time_unit=16
     traj = simulate(params, z0, steps, steps_per_time_unit=steps_per_time_unit)
     rng = np.random.default_rng(seed)
     signals = {k: v + rng.normal(0.0, noise, v.shape) for k, v in traj.angles().items()}
-    events = [{"time": 0.0, "foot": "L"}] + [{"time": e.time, "foot": e.foot} for e in traj.events]
+    # The start is just after a heel strike: on soft feet (effects.soft_heel) the strike's phase
+    # came before it, so the walk is read from its first touchdown, as `toywalk simulate` does.
+    first = [] if params.effects.get("soft_heel", 0.0) else [{"time": 0.0, "foot": "L"}]
+    events = first + [{"time": e.time, "foot": e.foot} for e in traj.events]
     return TrajectoryTable(traj.times, signals, traj.stance, events, {}), gait
 
 

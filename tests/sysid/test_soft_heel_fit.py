@@ -1,8 +1,8 @@
 """Fits with the compliant heel strike (``effects.soft_heel``; docs/soft_feet.md section 8): its
 score test at tau = 0 through the collocation's strike, and a fit that frees tau, on walks of
 the clearing toy simulated on soft feet (the simulator's phase is the step map's, sampled along
-its own path; the fit's collocation reads samples inside the phase off the flow continued back,
-so the two differ by O(tau) in the angles there)."""
+its own path; the fit's collocation reads samples inside the phase off the flow continued back:
+at the truth the two differ by 1.5 mrad at most, inside the phase, and by 2e-4 rad rms)."""
 
 import pytest
 from toywalk.model import find_gait
@@ -32,13 +32,13 @@ def walks():
 
 def test_the_score_at_null_is_one_sided_and_points_away_from_a_stiffer_truth(walks):
     """At the rigid base fit the score test of tau uses the collocation strike's one-sided slope
-    (model/compliant.collocation_strike). On the rigid walk it is quiet (measured z = +1.37); on
-    the 2 ms walk it is far off, but negative: to first order the walk asks for tau below 0
-    (z = -13.6, step -45 us), because the step time falls at about -5 s/s from tau = 0+ and
-    has risen again by 2 ms (docs/soft_feet.md section 8). So a score test cannot screen
-    soft_heel (``Effect.local`` False): the analysis fits it from several starts instead.
-    Its column, taken from a problem of its own beside other candidates (the fits refuse it
-    with other effects), is the one it has alone: the same z to round-off."""
+    (model/compliant.collocation_strike). On the rigid walk it is quiet; on the 2 ms walk it is
+    far off, but negative: to first order the walk asks for tau below 0 (measured z = -11.8, a
+    step of -47 us), because the step time falls from tau = 0+ and has risen again by 2 ms
+    (docs/soft_feet.md section 8). So a score test cannot screen soft_heel (``Effect.local``
+    False), and a fit from tau = 0 on the measured strikes stays at 0: the analysis fits it from
+    several starts instead. Its column, taken from a problem of its own beside other candidates
+    (the fits refuse it with other effects), is the one it has alone: the same z to round-off."""
     params, tables = walks
     quiet = score_tests(tables[0.0], fit(tables[0.0], params, [], noise_sd=NOISE, model="periodic"), [SOFT])
     assert abs(quiet[SOFT]["z"]) < 3.0
@@ -47,18 +47,22 @@ def test_the_score_at_null_is_one_sided_and_points_away_from_a_stiffer_truth(wal
     alone = score_tests(tables[TAU], base, [SOFT])
     assert both[SOFT]["z"] == pytest.approx(alone[SOFT]["z"], rel=1e-9)
     assert both[SOFT]["z"] < -5.0 and both[SOFT]["step"] < 0.0
+    stuck = fit(tables[TAU], params, [SOFT], noise_sd=NOISE, model="periodic", strikes="measured",
+                check_jacobian=False)
+    assert stuck.estimates[SOFT] < 0.1 * TAU
 
 
-@pytest.mark.slow
-def test_a_fit_frees_tau_and_recovers_it(walks):
-    """tau free alone, from the rigid walker (tau = 0), on the model's strikes: measured
-    2.030 +- 0.015 ms against the truth 2 ms (1.9 SE; 3 SE allows for the O(tau) reading of the
-    phase's samples), with the residuals at the noise. From tau = 0 a fit on the measured strikes
-    of 6 steps ended at 0.32 ms with residuals 4 times the noise: the misfit has several minima
-    in tau, which is why the analysis starts it at 0.5 to 4 ms (sysid/discrepancy.NONLOCAL_STARTS)."""
+def test_a_fit_from_one_of_the_analysis_starts_recovers_tau(walks):
+    """tau free alone, from 1 ms (one of sysid/discrepancy.NONLOCAL_STARTS), on the model's
+    strikes: measured 2.021 +- 0.018 ms against the truth 2 ms (1.2 SE; 3 SE allows for the
+    fit's reading of the samples inside the phase off the flow continued back, 1.5 mrad at most
+    at the truth), with the residuals at the noise. From 0 the same fit reached 2.015 ms but
+    IPOPT ended it with an error; from 4 ms it ended on another gait (chi-square 7e5): the
+    analysis keeps the converged start with the least chi-square."""
     params, tables = walks
-    result = fit(tables[TAU], params, [SOFT], noise_sd=NOISE, model="periodic", check_jacobian=False)
+    result = fit(tables[TAU], params.replace(**{SOFT: 1e-3}), [SOFT], noise_sd=NOISE, model="periodic",
+                 check_jacobian=False)
     assert result.success, result.status
     assert abs(result.estimates[SOFT] - TAU) < 3 * result.std[SOFT]
-    assert result.std[SOFT] < 0.1 * TAU
-    assert max(result.residual_rms[name] for name in NOISE) < 1.5 * 0.002
+    assert result.std[SOFT] < 0.05 * TAU
+    assert max(result.residual_rms[name] for name in NOISE) < 1.3 * 0.002
