@@ -33,7 +33,7 @@ physical range of docs/paper_toy.md), from the best design's gait, continued by 
 
 Run (about 25 min of one core)::
 
-    OPENBLAS_NUM_THREADS=1 .venv/bin/python docs/make_paper_design.py [--designs 600] [--budget 720]
+    OPENBLAS_NUM_THREADS=1 .venv/bin/python docs/make_paper_design.py [--designs 300] [--budget 300]
 """
 
 from __future__ import annotations
@@ -217,6 +217,8 @@ def toy_paced_starts(params) -> list[tuple[str, np.ndarray]]:
 
 
 def row(kind, label, start, fit, seconds) -> dict:
+    """A row of docs/paper_design.csv: the start's gait (None: no gait) and the design it led to
+    (a fit, or a repair's result: anything with ``params``, ``gait`` and ``status``)."""
     out = {"kind": kind, "label": label, "converged": start is not None, "seconds": f"{seconds:.2f}"}
     if start is not None:
         out.update(start_stride_time=f"{start.stride_time:.5g}",
@@ -225,7 +227,7 @@ def row(kind, label, start, fit, seconds) -> dict:
     if fit is None:
         return out
     p, g = fit.params, fit.gait
-    z = number_residuals(fit.features)
+    z = number_residuals(gait_features(g))
     build = build_margins(p)
     worst = min(build, key=build.get)
     out.update(
@@ -244,6 +246,8 @@ def shipped_starts(log) -> list:
     """Every shipped walker's gaits (global search) continued into the box at 4.5 deg."""
     out = []
     for path in sorted((ROOT / "data" / "params").glob("*.toml")):
+        if path.stem == "paper-toy":  # this search's own result
+            continue
         params = load_params(path)
         t0 = time.perf_counter()
         search = all_gaits(params)
@@ -351,21 +355,22 @@ def main(args) -> None:
             fits.append((rows[-1], result))
             z = number_residuals(result.features)
             log(f"{label}: {', '.join(f'{k} {v:+.2f}' for k, v in z.items())}, max|eig| "
-                f"{result.gait.max_abs_eigenvalue:.3f}, margin {margin(result.params, result.gait):+.4f}")
-    feasible = []
+                f"{result.gait.max_abs_eigenvalue:.3f}, least build margin {rows[-1]['worst_build']}")
     for r, result in fits:
-        stands = can_stand(result.params).can_stand
-        r["can_stand"] = stands
-        r["feasible"] = margin(result.params, result.gait) >= 0 and not stands
-        if r["feasible"]:
-            feasible.append(result)
-    log(f"{len(fits)} fits, {len(feasible)} feasible")
+        r["can_stand"] = can_stand(result.params).can_stand
+        r["feasible"] = margin(result.params, result.gait) >= 0 and not r["can_stand"]
+    repaired = repair(fits, args, log)
+    fits += repaired
+    rows += [r for r, _ in repaired]
+    feasible = [result for r, result in fits if r["feasible"]]
+    log(f"{len(fits)} fits and repairs, {len(feasible)} feasible")
     summary = {"starts": len(starts), "with_gait": sum(s[2] is not None for s in starts),
                "newton_starts": newton, "designs": args.designs, "fits": len(fits),
                "feasible": len(feasible)}
     best = None
     for result in sorted(feasible, key=lambda f: f.gait.max_abs_eigenvalue)[: args.polish]:
-        opt = minimise_max_eigenvalue(result.gait, FREE, BOX, constraint=margin, maxiter=args.maxiter)
+        opt = minimise_max_eigenvalue(result.gait, FREE, BOX, constraint=margin, maxiter=args.maxiter,
+                                      continuation=False)
         stand = can_stand(opt.params).can_stand
         log(f"polished: max|eig| {opt.start_value:.4f} -> {opt.value:.4f}, can stand {stand}")
         if not stand and (best is None or opt.value < best.value):
@@ -387,7 +392,45 @@ def main(args) -> None:
     summary["seconds"] = time.perf_counter() - t_start
     write(rows, summary, fits)
     write_design(summary)
+    summary["tally"] = tally(HERE / "paper_design.csv")
+    (HERE / "paper_design.json").write_text(json.dumps(summary, indent=1) + "\n")
     log("written docs/paper_design.csv, docs/paper_design.json, docs/paper_design.png")
+
+
+@dataclasses.dataclass
+class Repair:
+    """A design moved into the build relations: what :func:`repair` returns in a fit's place."""
+
+    params: object
+    gait: object
+    status: str
+    cost: float
+
+
+def repair(fits: list, args, log) -> list:
+    """The fits that meet every number but miss a build relation (or stand), the nearest first
+    (at most ``args.repair``): the smallest constraint margin maximised by Nelder-Mead
+    (``minimise_max_eigenvalue`` with that as its objective) from each. Returns (row, Repair)
+    pairs for the designs it reached."""
+    near = [(r, f) for r, f in fits if not r["feasible"] and r["numbers_met"]]
+    near.sort(key=lambda rf: -margin(rf[1].params, rf[1].gait))
+    out = []
+    for r, result in near[: args.repair]:
+        t0 = time.perf_counter()
+        opt = minimise_max_eigenvalue(result.gait, FREE, BOX, maxiter=args.repair_iter, continuation=False,
+                                      objective=lambda g: -margin(g.params, g) / g.params.leg_length)
+        gait = opt.gait
+        fixed = Repair(gait.params, gait, "repaired", sum(v * v for v in number_residuals(
+            gait_features(gait)).values()) / 2)
+        new = row("repair", f"repair of {r['label']}", result.gait, fixed, time.perf_counter() - t0)
+        new["can_stand"] = can_stand(gait.params).can_stand
+        new["feasible"] = margin(gait.params, gait) >= 0 and not new["can_stand"]
+        out.append((new, fixed))
+        log(f"repair of {r['label']}: least margin {margin(result.params, result.gait):+.4f} -> "
+            f"{margin(gait.params, gait):+.4f} m, {new['worst_build']}, max|eig| "
+            f"{gait.max_abs_eigenvalue:.3f}, can stand {new['can_stand']}, "
+            f"{time.perf_counter() - t0:.0f} s")
+    return out
 
 
 def effect_stage(gait, constraint, maxiter: int, log) -> list[dict]:
@@ -436,6 +479,28 @@ def write(rows, summary, fits) -> None:
         writer.writerows(rows)
     (HERE / "paper_design.json").write_text(json.dumps(summary, indent=1) + "\n")
     figure(fits)
+
+
+def tally(path: Path) -> dict:
+    """From docs/paper_design.csv: of the fits, how many meet each number's interval, each pair of
+    them, all of them, the build relations, and the least |z| (half-widths) each number reached."""
+    with open(path) as f:
+        fitted = [r for r in csv.DictReader(f) if r["fit_status"]]
+    z = {k: np.array([float(r[f"z_{k}"]) for r in fitted]) for k in TARGETS}
+    met = {k: np.abs(v) <= 1 for k, v in z.items()}
+    built = np.array([r["build_met"] == "True" for r in fitted])
+    keys = list(TARGETS)
+    missed = [r["worst_build"].split()[0] for r in fitted if r["build_met"] == "False"]
+    return {
+        "fits": len(fitted),
+        "meets": {k: int(v.sum()) for k, v in met.items()},
+        "meets_with_build": {k: int((v & built).sum()) for k, v in met.items()},
+        "pairs": {f"{a}+{b}": int((met[a] & met[b]).sum()) for i, a in enumerate(keys) for b in keys[i + 1:]},
+        "all_numbers": int(np.logical_and.reduce(list(met.values())).sum()),
+        "build": int(built.sum()),
+        "least_abs_z": {k: float(np.min(np.abs(v))) for k, v in z.items()},
+        "worst_build": {name: missed.count(name) for name in sorted(set(missed))},
+    }
 
 
 def write_design(summary: dict) -> None:
@@ -490,16 +555,33 @@ def figure(fits) -> None:
     fig.savefig(HERE / "paper_design.png", dpi=120)
 
 
+def retally() -> None:
+    """Rewrite the tally of docs/paper_design.json from docs/paper_design.csv (no search)."""
+    path = HERE / "paper_design.json"
+    summary = json.loads(path.read_text())
+    summary["tally"] = tally(HERE / "paper_design.csv")
+    path.write_text(json.dumps(summary, indent=1) + "\n")
+    print(json.dumps(summary["tally"], indent=1))
+
+
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--designs", type=int, default=600, help="Latin-hypercube box designs")
+    parser.add_argument("--designs", type=int, default=300, help="Latin-hypercube box designs")
     parser.add_argument("--global-designs", type=int, default=8,
                         help="box designs searched by all_gaits (the others: toy-paced starts only)")
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--budget", type=float, default=720.0,
+    parser.add_argument("--budget", type=float, default=300.0,
                         help="s of fitting after which no fit starts")
     parser.add_argument("--nfev", type=int, default=60, help="least-squares evaluations a fit")
     parser.add_argument("--maxiter", type=int, default=300, help="Nelder-Mead iterations a polish")
     parser.add_argument("--effect-iter", type=int, default=30, help="Nelder-Mead iterations an effect")
+    parser.add_argument("--repair", type=int, default=4, help="near-feasible fits repaired")
+    parser.add_argument("--repair-iter", type=int, default=100, help="Nelder-Mead iterations a repair")
     parser.add_argument("--polish", type=int, default=3, help="feasible designs polished")
-    main(parser.parse_args())
+    parser.add_argument("--tally-only", action="store_true",
+                        help="only recount docs/paper_design.csv into docs/paper_design.json")
+    arguments = parser.parse_args()
+    if arguments.tally_only:
+        retally()
+    else:
+        main(arguments)
