@@ -58,9 +58,9 @@ from toywalk.model import (
     solve_fixed_point,
     static_margin,
 )
-from toywalk.model.gait import GaitNotFound, continue_gait
+from toywalk.model.gait import GaitNotFound, continue_gait, find_gait
 from toywalk.model.gait_search import SAME_GAIT
-from toywalk.model.optimize import fit_gait_targets, gait_features, minimise_max_eigenvalue
+from toywalk.model.optimize import GaitEvaluator, fit_gait_targets, gait_features, minimise_max_eigenvalue
 from toywalk.model.parameters import ParameterError
 
 HERE = Path(__file__).resolve().parent
@@ -385,6 +385,7 @@ def main(args) -> None:
     if best is not None and best.gait.max_abs_eigenvalue >= 1:
         summary["effects_on"] = "best"
         summary["effects"] = effect_stage(best.gait, margin, args.effect_iter, log)
+        summary["effect_scan"] = effect_scan(best.gait, args.scan_points, log)
     elif best is None and built:
         summary["effects_on"] = "closest_built"
         closest_built = min(built, key=lambda f: f[1].cost)[1]
@@ -456,6 +457,50 @@ def effect_stage(gait, constraint, maxiter: int, log) -> list[dict]:
             f"{opt.value:.4f} at {value:.4g} ({opt.evaluations} gaits, {opt.failures} lost, "
             f"{time.perf_counter() - t0:.0f} s)")
     return out
+
+
+def effect_scan(gait, points: int, log) -> list[dict]:
+    """Each effect of :func:`effect_stage` stepped from its null value to EFFECT_RANGE x typical in
+    ``points`` strengths, the gait followed by warm-started Newton and continuation
+    (``GaitEvaluator``): max |eigenvalue| and the numbers (in half-widths) along the way, to the
+    last strength with a gait."""
+    out = []
+    for name, effect in EFFECTS.items():
+        if effect.port_only or not effect.screened or effect.breaks_symmetry:
+            continue
+        key = f"effects.{name}"
+        high = min(effect.bounds[1], effect.null + EFFECT_RANGE * effect.typical)
+        evaluator = GaitEvaluator(gait.params, [key], gait)
+        steps = []
+        for value in np.linspace(effect.null, high, points):
+            g = evaluator([value])
+            if g is None:
+                break
+            steps.append({"value": float(value), "max_abs_eigenvalue": g.max_abs_eigenvalue,
+                          "z": number_residuals(gait_features(g))})
+        least = min(steps, key=lambda s: s["max_abs_eigenvalue"])
+        out.append({"effect": name, "unit": effect.unit, "range": [effect.null, high], "steps": steps,
+                    "reached": steps[-1]["value"], "least": least})
+        log(f"{key} scanned to {steps[-1]['value']:.4g} of {high:g} {effect.unit}: least max|eig| "
+            f"{least['max_abs_eigenvalue']:.4f} at {least['value']:.4g}, numbers there "
+            + ", ".join(f"{k} {v:+.2f}" for k, v in least["z"].items()))
+    return out
+
+
+def effects_only(args) -> None:
+    """The effect stages again on data/params/paper-toy.toml's gait, into docs/paper_design.json."""
+    t0 = time.perf_counter()
+
+    def log(msg):
+        print(f"[{time.perf_counter() - t0:6.0f} s] {msg}", flush=True)
+
+    gait = find_gait(load_params(ROOT / "data" / "params" / "paper-toy.toml"))
+    path = HERE / "paper_design.json"
+    summary = json.loads(path.read_text())
+    summary["effects_on"] = "best"
+    summary["effects"] = effect_stage(gait, margin, args.effect_iter, log)
+    summary["effect_scan"] = effect_scan(gait, args.scan_points, log)
+    path.write_text(json.dumps(summary, indent=1) + "\n")
 
 
 def describe(result) -> dict:
@@ -578,10 +623,15 @@ if __name__ == "__main__":
     parser.add_argument("--repair", type=int, default=4, help="near-feasible fits repaired")
     parser.add_argument("--repair-iter", type=int, default=100, help="Nelder-Mead iterations a repair")
     parser.add_argument("--polish", type=int, default=3, help="feasible designs polished")
+    parser.add_argument("--scan-points", type=int, default=41, help="strengths an effect scan")
+    parser.add_argument("--effects-only", action="store_true",
+                        help="only the effect stages on data/params/paper-toy.toml's gait")
     parser.add_argument("--tally-only", action="store_true",
                         help="only recount docs/paper_design.csv into docs/paper_design.json")
     arguments = parser.parse_args()
     if arguments.tally_only:
         retally()
+    elif arguments.effects_only:
+        effects_only(arguments)
     else:
         main(arguments)
