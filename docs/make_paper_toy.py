@@ -166,6 +166,18 @@ def main() -> None:
     print(f"docs/paper_toy.md written ({minutes:.1f} min)")
 
 
+def _inverse_design_section() -> list[str]:
+    """The page's "Inverse design" section as it stands (docs/make_paper_design.py's answer,
+    written from that script's output), kept when this script rewrites the page."""
+    page = HERE / "paper_toy.md"
+    text = page.read_text() if page.exists() else ""
+    start = text.find("## Inverse design")
+    if start < 0:
+        return []
+    end = text.find("## The question", start)
+    return text[start:end].rstrip("\n").split("\n") + [""]
+
+
 def write_page(results: dict, bodies: dict, minutes: float) -> None:
     lines = [
         "# The paper's toy through the diagnosis",
@@ -175,6 +187,7 @@ def write_page(results: dict, bodies: dict, minutes: float) -> None:
         "data/paper/measurements.csv --params data/params/tinkertoy.toml --parameters "
         f"{','.join(CANDIDATE_PARAMETERS)} --out REPORT` (from the fit's gait).",
         "",
+        *_inverse_design_section(),
         "## The question",
         "",
         "Coleman & Ruina's toy (PRL 80:3658, 1998) walks stably on a ramp of about 4.5 deg, a "
