@@ -16,8 +16,10 @@ The procedure, and the rule that decides (``alpha`` is the family-wise false-ala
    physical bound (a damper at zero) is tested one-sided.
 3. **Adequate** when no candidate's score p-value is below ``alpha / K`` (K candidates,
    Bonferroni) and no signal shows a repeated pattern at ``alpha``.
-4. Otherwise **extended fits** of the best-screened candidates (at most :data:`MAX_EXTENDED`), each
-   scored by the likelihood ratio against the base with one noise model (the base fit's: a
+4. Otherwise **extended fits** of the best-screened candidates (at most :data:`MAX_EXTENDED`), and of
+   every candidate whose score at its null does not speak for its range (``Effect.local`` False:
+   the soft heel strike, fitted from :data:`NONLOCAL_STARTS` and the best converged start kept),
+   each scored by the likelihood ratio against the base with one noise model (the base fit's: a
    misfit inflates it, which only makes the test conservative; where the file carries errors
    shared by phase, divided by the candidate's design effect for its p-value, Rao & Scott 1981,
    as its score test's standard error is widened: :func:`toywalk.sysid.score.score_statistics`;
