@@ -28,7 +28,7 @@ def cmd_effects(args) -> int:
         symmetry = "; breaks the left-right symmetry" if r["breaks_symmetry"] else ""
         port = "; port-only (not a default cause of diagnose)" if r["port_only"] else ""
         if not r["port_only"] and not r["screened"]:
-            port = "; not a default cause of diagnose (its fits cost minutes): --effects library,NAME"
+            port = f"; not a default cause of diagnose (its fits cost minutes): --effects library,{r['name']}"
         print(f"{r['name']:<22s} [{r['unit']}] null {r['null']:g}, typical {r['typical']:g}, "
               f"bounds [{low:g}, {high:g}]; enters the {r['enters']}{symmetry}{port}")
         print(f"{'':<22s} {r['physics']}")
