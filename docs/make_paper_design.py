@@ -445,16 +445,23 @@ def repair(fits: list, args, log) -> list:
     return out
 
 
+def effect_ranges():
+    """The effects the effect stages free, each ``(name, effect, key, high)``: the screened,
+    mirror-symmetric effects of the library, freed within [null, high], high EFFECT_RANGE x typical
+    (within the effect's bounds)."""
+    for name, effect in EFFECTS.items():
+        if effect.port_only or not effect.screened or effect.breaks_symmetry:
+            continue
+        high = min(effect.bounds[1], effect.null + EFFECT_RANGE * effect.typical)
+        yield name, effect, f"effects.{name}", high
+
+
 def effect_stage(gait, constraint, maxiter: int, log) -> list[dict]:
     """Each screened, mirror-symmetric effect of the library freed alone on ``gait``'s walker,
     within [null, EFFECT_RANGE x typical]: the least max |eigenvalue| it reaches (Nelder-Mead,
     the gait followed by the evaluator's warm starts and continuation), ``constraint`` kept."""
     out = []
-    for name, effect in EFFECTS.items():
-        if effect.port_only or not effect.screened or effect.breaks_symmetry:
-            continue
-        key = f"effects.{name}"
-        high = min(effect.bounds[1], effect.null + EFFECT_RANGE * effect.typical)
+    for name, effect, key, high in effect_ranges():
         t0 = time.perf_counter()
         opt = minimise_max_eigenvalue(gait, [key], {key: (effect.null, high)}, constraint=constraint,
                                       maxiter=maxiter, initial_step=0.05)
@@ -476,11 +483,7 @@ def effect_scan(gait, points: int, log) -> list[dict]:
     (``GaitEvaluator``): max |eigenvalue| and the numbers (in half-widths) along the way, to the
     last strength with a gait."""
     out = []
-    for name, effect in EFFECTS.items():
-        if effect.port_only or not effect.screened or effect.breaks_symmetry:
-            continue
-        key = f"effects.{name}"
-        high = min(effect.bounds[1], effect.null + EFFECT_RANGE * effect.typical)
+    for name, effect, key, high in effect_ranges():
         evaluator = GaitEvaluator(gait.params, [key], gait)
         steps = []
         for value in np.linspace(effect.null, high, points):
