@@ -224,6 +224,16 @@ def soft_link(planar: bool) -> ca.Function:
                                    curvature=False)
 
 
+@cache
+def _soft_strike(planar: bool) -> ca.Function:
+    """:func:`soft_link` of a dynamic state (the travel padded with zeros), ``(x[nd], p) ->
+    x_plus[nx]``: the transcription's link and its contact jump both read it."""
+    lay = layout(planar)
+    xm, pm = ca.MX.sym("x", lay.n_dyn), ca.MX.sym("p", N_INPUT)
+    return ca.Function("soft_strike", [xm, pm],
+                       [soft_link(planar)(ca.vertcat(xm, ca.MX.zeros(lay.nx - lay.n_dyn)), pm)])
+
+
 def strike_phase(p):
     """The compliant heel strike's duration (s) from a parameter input (NumPy or CasADi): the
     phase's ``span`` time constants (toywalk.model.compliant.SPAN; 0 on rigid feet)."""
@@ -257,7 +267,7 @@ def bvp(planar: bool, n_intervals: int = 30, degree: int = 4, phases: int = 1,
                                                      base["rhs"](full, ps)[:nd])])
     if soft:
         xm, pm = ca.MX.sym("x", nd), ca.MX.sym("p", N_INPUT)
-        coll = ca.Function("coll", [xm, pm], [soft_link(planar)(ca.vertcat(xm, ca.MX.zeros(pad)), pm)[:nd]])
+        coll = ca.Function("coll", [xm, pm], [_soft_strike(planar)(xm, pm)[:nd]])
     else:
         coll = ca.Function("coll", [xs, ps], [base["collision"](full, ps)[:nd]])
 
@@ -358,7 +368,7 @@ def contact_travel(prob: BVP) -> ca.Function:
     f_rate = ca.Function("travel_rate", [xs, ps], [rate])
     if prob.soft:
         xm, pm = ca.MX.sym("x", nd), ca.MX.sym("p", N_INPUT)
-        jump = soft_link(planar)(ca.vertcat(xm, ca.MX.zeros(pad)), pm)[nd:]
+        jump = _soft_strike(planar)(xm, pm)[nd:]
         f_jump = ca.Function("contact_jump", [xm, pm], [ca.vertcat(jump, 0) if pad == 1 else jump])
     else:
         f_jump = ca.Function("contact_jump", [xs, ps], [jump])
