@@ -2,6 +2,8 @@
 (docs/soft_feet.md section 5).
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python docs/make_soft_heel.py      # about 40 s
+    OPENBLAS_NUM_THREADS=1 .venv/bin/python docs/make_soft_heel.py \
+        --params data/params/robust-toy.toml --slope-to 0.075          # docs/gaits.md section 7
 
 The gait of data/params/clearing-toy.toml is followed by pseudo-arclength continuation in
 ``effects.soft_heel`` (the compliant heel strike's time constant tau, model/effects/soft.py) from
@@ -9,12 +11,14 @@ the rigid strike (tau = 0) to 4 ms, then solved by Newton at tau = 0, 0.25, 0.5,
 from the nearest branch point. For each: the step map's eigenvalues, the step time and the lean
 amplitude; at 1 ms and 4 ms also the largest eigenvalue with the phase integrated at twice the
 steps (the integrator's share of the numbers). Then the slope at which the gait loses stability,
-rigid and at tau = 1, 2 and 4 ms (continuation in ``slope``). Prints Markdown tables and writes
-docs/soft_heel.png and docs/soft_heel.csv.
+rigid and at tau = 1, 2 and 4 ms (continuation in ``slope`` up to ``--slope-to``). Prints Markdown
+tables and writes docs/soft_heel.png and docs/soft_heel.csv; with ``--params P.toml``,
+docs/soft_heel_P.png and docs/soft_heel_P.csv.
 """
 
 from __future__ import annotations
 
+import argparse
 import csv
 import time
 from pathlib import Path
@@ -31,7 +35,13 @@ SOFT = "effects.soft_heel"
 
 
 def main() -> None:
-    params = load_params(PARAMS)
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--params", type=Path, default=PARAMS)
+    parser.add_argument("--slope-to", type=float, default=0.0625,
+                        help="the slope continuation's end (rad), above the rigid gait's edge")
+    args = parser.parse_args()
+    params = load_params(args.params)
+    suffix = "" if args.params.resolve() == PARAMS else f"_{args.params.stem}"
     start = time.perf_counter()
     branch = continue_branch(params, SOFT, 0.0, 0.004, max_points=400)
     print(f"continuation: {branch.status} ({branch.message}), {len(branch.points)} points, "
@@ -61,7 +71,7 @@ def main() -> None:
         print(f"| {r['tau_ms']:g} | {r['max_abs_eig']:.4f} | {r['dominant']:.4f} | {finer} "
               f"| {r['step_time_ms']:.2f} | {r['lean_deg']:.3f} | {r['stride_mm']:.2f} "
               f"| {r['residual']:.1e} |")
-    with open(HERE / "soft_heel.csv", "w", newline="") as f:
+    with open(HERE / f"soft_heel{suffix}.csv", "w", newline="") as f:
         writer = csv.writer(f)
         writer.writerow(["tau_s", "max_abs_eigenvalue", "step_time_s", "lean_amplitude_rad",
                          "stride_length_m"])
@@ -72,13 +82,14 @@ def main() -> None:
     edges = {}
     for tau in (0.0, 1e-3, 2e-3, 4e-3):
         walker_params = params.replace(**{SOFT: tau})
-        slope_branch = continue_branch(walker_params, "slope", params.slope, 0.0625, max_points=200,
+        slope_branch = continue_branch(walker_params, "slope", params.slope, args.slope_to, max_points=200,
                                        z_start=None if tau == 0.0 else _gait_start(branch, tau))
         lost = [e for e in slope_branch.events if e.kind == "loses stability"]
         edges[tau] = lost[0].value if lost else np.nan
         print(f"tau = {1e3 * tau:g} ms: slope branch {slope_branch.status}; loses stability at "
               f"{edges[tau]:.6f} rad" + (f" ({lost[0].detail})" if lost else ""))
-    _figure(branch, rows)
+    title = f"{args.params.stem} on soft feet ({args.params.name}, slope {params.slope:.4g} rad)"
+    _figure(branch, rows, title, HERE / f"soft_heel{suffix}.png")
 
 
 def _gait_start(branch, tau: float) -> np.ndarray:
@@ -86,7 +97,7 @@ def _gait_start(branch, tau: float) -> np.ndarray:
     return branch.points[int(np.argmin(np.abs(values - tau)))].fixed_point
 
 
-def _figure(branch, rows) -> None:
+def _figure(branch, rows, title: str, path: Path) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -106,8 +117,8 @@ def _figure(branch, rows) -> None:
     axes[1].legend(fontsize=8)
     axes[2].plot(tau, [np.degrees(p.lean_amplitude) for p in branch.points], ".-", ms=3)
     axes[2].set(xlabel="tau (ms)", ylabel="lean amplitude (deg)")
-    fig.suptitle("clearing toy on soft feet (data/params/clearing-toy.toml, slope 0.06018 rad)", fontsize=10)
-    fig.savefig(HERE / "soft_heel.png", dpi=110)
+    fig.suptitle(title, fontsize=10)
+    fig.savefig(path, dpi=110)
 
 
 if __name__ == "__main__":
