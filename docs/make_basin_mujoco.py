@@ -33,16 +33,18 @@ walk, the fall's time), ``end_distance`` (model: from the fixed point at its las
 strike, state_scale units), ``last10_step_time_ms`` (MuJoCo: mean of its last ten steps), and
 the seconds each walk took.
 
-**Recovery curves** (``--curves``; about 10 minutes). For robust-toy, pushes of 8 sizes (0.005
+**Recovery curves** (``--curves``; about 8 minutes). For robust-toy, pushes of 8 sizes (0.005
 to 0.09 state_scale units) along 20 random directions (``random_directions``, seed 0; the same
 at every size), each start ``perturbed`` onto the post-strike surface (section 5) and given to
-both engines: the model's step map and ``walk_in_mujoco`` at (1 ms, friction 1) and (2 ms, 0.6).
+both engines: the model's step map and ``walk_in_mujoco`` at (1 ms, friction 1), (2 ms, 0.6) and
+(4 ms, 0.6).
 The criterion is the same in both: 60 alternating heel strikes without a fall (the model's scuff
 a fall, as above). For the model it also says whether the walk ``recovers`` onto the gait
 (section 5's rule: within 1e-4 and 100 times closer, at most 600 steps). Writes
 docs/basin_mujoco_curves.csv (one row per size, direction and engine setting: ``walked``,
 ``steps``, ``outcome``, ``recovered`` (model), ``bounces``, ``scuffs``, ``seconds``) and
-docs/basin_mujoco_curves.png (the fraction that walks against size, binomial standard errors);
+docs/basin_mujoco_curves.png (the fraction that walks against size, binomial standard errors,
+the series drawn 2 % apart along the size axis so that equal ones stay visible);
 ``--plot-only`` redraws it from the CSV.
 """
 
@@ -75,12 +77,13 @@ SETTINGS = ((1e-3, 2.0), (1e-3, 1.0), (2e-3, 1.0), (2e-3, 0.6), (4e-3, 2.0), (4e
 TIMESTEP = 1e-4  # s, walk_in_mujoco's default
 # Recovery curves (--curves): robust-toy, push sizes (state_scale units) from where every random
 # direction walks in the model (0.005; its median random radius is 0.0197, docs/gaits.md section
-# 7) to where none does (0.09), 20 directions, two contact settings from issue 44's range.
+# 7) to where none does (0.09), 20 directions, three contact settings from issue 44's range
+# (the softest, 4 ms and friction 0.6, its far corner).
 CURVE_WALKER = "robust-toy"
 CURVE_SIZES = (0.005, 0.008, 0.012, 0.018, 0.027, 0.04, 0.06, 0.09)
 CURVE_DIRECTIONS = 20
 CURVE_SEED = 0
-CURVE_SETTINGS = ((1e-3, 1.0), (2e-3, 0.6))
+CURVE_SETTINGS = ((1e-3, 1.0), (2e-3, 0.6), (4e-3, 0.6))
 
 
 def _starts(gait) -> list[tuple[str, float, np.ndarray]]:
@@ -234,11 +237,14 @@ def plot_curves() -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(6.5, 4))
-    for (label, sizes, counts, n), style in zip(curve_summary(_read_curves()),
-                                                ("o-", "s--", "^-", "v-", "d-", "x-"), strict=False):
+    fig, ax = plt.subplots(figsize=(7, 4.3))
+    series = curve_summary(_read_curves())
+    styles = ("o-", "s--", "^-", "v-", "d-", "x-")
+    for k, ((label, sizes, counts, n), style) in enumerate(zip(series, styles, strict=False)):
         p = counts / n
-        ax.errorbar(sizes, p, yerr=np.sqrt(p * (1 - p) / n), fmt=style, capsize=3, label=label)
+        apart = 1.02 ** (k - (len(series) - 1) / 2)  # equal series side by side, not on top
+        ax.errorbar(sizes * apart, p, yerr=np.sqrt(p * (1 - p) / n), fmt=style, capsize=3, label=label,
+                    mfc="none" if "--" in style else None)
     ax.set_xscale("log")
     ax.set_xlabel("push size (state_scale units)")
     ax.set_ylabel(f"fraction of {n} random directions")
