@@ -1,7 +1,7 @@
 """The basin in MuJoCo against the model's: hand launches, kicks and recovery curves (docs/gaits.md
 section 8).
 
-    OPENBLAS_NUM_THREADS=1 MUJOCO_GL=egl .venv/bin/python docs/make_basin_mujoco.py   # about 5 minutes
+    OPENBLAS_NUM_THREADS=1 MUJOCO_GL=egl .venv/bin/python docs/make_basin_mujoco.py   # about 3.5 minutes
     OPENBLAS_NUM_THREADS=1 MUJOCO_GL=egl .venv/bin/python docs/make_basin_mujoco.py --curves
     OPENBLAS_NUM_THREADS=1 MUJOCO_GL=egl .venv/bin/python docs/make_basin_mujoco.py --plot-only
 
@@ -33,7 +33,7 @@ walk, the fall's time), ``end_distance`` (model: from the fixed point at its las
 strike, state_scale units), ``last10_step_time_ms`` (MuJoCo: mean of its last ten steps), and
 the seconds each walk took.
 
-**Recovery curves** (``--curves``; about 8 minutes). For robust-toy, pushes of 8 sizes (0.005
+**Recovery curves** (``--curves``; about 10 minutes). For robust-toy, pushes of 8 sizes (0.005
 to 0.09 state_scale units) along 20 random directions (``random_directions``, seed 0; the same
 at every size), each start ``perturbed`` onto the post-strike surface (section 5) and given to
 both engines: the model's step map and ``walk_in_mujoco`` at (1 ms, friction 1), (2 ms, 0.6) and
