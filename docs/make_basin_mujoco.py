@@ -1,9 +1,13 @@
-"""The basin in MuJoCo against the model's: hand launches and kicks (docs/gaits.md section 8).
+"""The basin in MuJoCo against the model's: hand launches, kicks and recovery curves (docs/gaits.md
+section 8).
 
-    OPENBLAS_NUM_THREADS=1 MUJOCO_GL=egl .venv/bin/python docs/make_basin_mujoco.py   # about 3 minutes
+    OPENBLAS_NUM_THREADS=1 MUJOCO_GL=egl .venv/bin/python docs/make_basin_mujoco.py   # about 3.5 minutes
+    OPENBLAS_NUM_THREADS=1 MUJOCO_GL=egl .venv/bin/python docs/make_basin_mujoco.py --curves
+    OPENBLAS_NUM_THREADS=1 MUJOCO_GL=egl .venv/bin/python docs/make_basin_mujoco.py --plot-only
 
-For docs/robust_best.toml (the design search's best, section 7) and data/params/clearing-toy.toml,
-from three kinds of start, each walked at most 60 steps:
+**Starts** (the default). For data/params/robust-toy.toml (the design search's best, section 7,
+docs/robust_best.toml shipped) and data/params/clearing-toy.toml, from three kinds of start, each
+walked at most 60 steps:
 
 - the gait's fixed point (the reference: does the engine walk the gait at all?);
 - the hand launch at 1.5 and 2.5 times the gait's lean amplitude (``launch_state``: at rest, legs
@@ -14,21 +18,39 @@ from three kinds of start, each walked at most 60 steps:
 
 The model walks with the step map (``Walker.step``) until a step fails (fell, no heel strike) or
 its swing foot scuffs (a failure for these two gaits, which clear, as in ``recovers``). MuJoCo
-walks with ``walk_in_mujoco`` at four contact settings (time constant, friction): the checked
-build (1 ms, 2) and (1 ms, 1), (2 ms, 1), (2 ms, 0.6) from issue 44's range, 1e-4 s steps, giving
-up after twice the gait's time for 60 steps. Writes docs/basin_mujoco.csv, one row per walker,
-engine setting and start: ``steps`` walked (MuJoCo's alternating heel strikes), ``outcome``
-(model: ``walked``, ``fell``, ``no_heel_strike``, ``scuffed``; MuJoCo: ``walked``, ``fell`` (a
-hip down to half the leg length), ``same foot twice`` (which ``walk_in_mujoco`` also reports as
-a fall; ``..., walked on`` when 60 heel strikes came all the same: the landing foot bounced once),
-``timed out``), ``heel_strikes`` (all of them, alternating or not), ``scuffs``, ``end_time_s``
-(model: its last heel strike; MuJoCo: the end of the walk, the fall's time), ``end_distance``
-(model: from the fixed point at its last heel strike, state_scale units),
-``last10_step_time_ms`` (MuJoCo: mean of its last ten steps), and the seconds each walk took.
+walks with ``walk_in_mujoco`` at six contact settings (time constant, friction): the checked
+build (1 ms, 2) and (1 ms, 1), (2 ms, 1), (2 ms, 0.6), (4 ms, 2), (4 ms, 0.6) from issue 44's
+range (1 to 4 ms, friction 0.6 to 2), 1e-4 s steps, giving up after twice the gait's time for 60
+steps. Writes docs/basin_mujoco.csv, one row per walker, engine setting and start: ``steps``
+walked (MuJoCo's alternating heel strikes), ``outcome`` (model: ``walked``, ``fell``,
+``no_heel_strike``, ``scuffed``; MuJoCo: ``walked``, ``fell`` (a hip down to half the leg length),
+``same foot twice`` (a foot's second heel strike running, too late to be a bounce; ``..., walked
+on`` when 60 heel strikes came all the same), ``timed out``), ``heel_strikes`` (all of them,
+alternating or not), ``scuffs``, ``bounces`` (MuJoCo: the landing foot leaving the ramp and
+landing again, ``MujocoWalk.bounces``), ``last_strike_s`` (the last alternating heel strike's
+time, 0 for the start's), ``end_time_s`` (model: its last heel strike; MuJoCo: the end of the
+walk, the fall's time), ``end_distance`` (model: from the fixed point at its last heel
+strike, state_scale units), ``last10_step_time_ms`` (MuJoCo: mean of its last ten steps), and
+the seconds each walk took.
+
+**Recovery curves** (``--curves``; about 10 minutes). For robust-toy, pushes of 8 sizes (0.005
+to 0.09 state_scale units) along 20 random directions (``random_directions``, seed 0; the same
+at every size), each start ``perturbed`` onto the post-strike surface (section 5) and given to
+both engines: the model's step map and ``walk_in_mujoco`` at (1 ms, friction 1), (2 ms, 0.6) and
+(4 ms, 0.6).
+The criterion is the same in both: 60 alternating heel strikes without a fall (the model's scuff
+a fall, as above). For the model it also says whether the walk ``recovers`` onto the gait
+(section 5's rule: within 1e-4 and 100 times closer, at most 600 steps). Writes
+docs/basin_mujoco_curves.csv (one row per size, direction and engine setting: ``walked``,
+``steps``, ``outcome``, ``recovered`` (model), ``bounces``, ``scuffs``, ``seconds``) and
+docs/basin_mujoco_curves.png (the fraction that walks against size, binomial standard errors,
+the series drawn 2 % apart along the size axis so that equal ones stay visible);
+``--plot-only`` redraws it from the CSV.
 """
 
 from __future__ import annotations
 
+import argparse
 import csv
 import math
 import time
@@ -36,22 +58,32 @@ from pathlib import Path
 
 import numpy as np
 from toywalk.model import Walker, find_gait, load_params
-from toywalk.model.basin import launch_state
+from toywalk.model.basin import launch_state, perturbed, random_directions, recovers
 from toywalk.model.gait import state_scale
 from toywalk.model.mujoco_check import walk_in_mujoco
 from toywalk.model.walker import StepFailure
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
-WALKERS = {"robust-best": HERE / "robust_best.toml",
+WALKERS = {"robust-toy": ROOT / "data" / "params" / "robust-toy.toml",
            "clearing-toy": ROOT / "data" / "params" / "clearing-toy.toml"}
 CAP = 60  # steps walked at most
 LAUNCH_MULTIPLES = (1.5, 2.5)  # tip angles, times the gait's lean amplitude (issue 44)
 KICK = 0.02  # rad/s on each of the four rates, random signs (issue 44)
 SEEDS = range(8)
-# MuJoCo's contacts: (time constant (s), friction coefficient); the first is the checked build.
-SETTINGS = ((1e-3, 2.0), (1e-3, 1.0), (2e-3, 1.0), (2e-3, 0.6))
+# MuJoCo's contacts: (time constant (s), friction coefficient); the first is the checked build, the
+# others span issue 44's range (1 to 4 ms, friction 0.6 to 2).
+SETTINGS = ((1e-3, 2.0), (1e-3, 1.0), (2e-3, 1.0), (2e-3, 0.6), (4e-3, 2.0), (4e-3, 0.6))
 TIMESTEP = 1e-4  # s, walk_in_mujoco's default
+# Recovery curves (--curves): robust-toy, push sizes (state_scale units) from where every random
+# direction walks in the model (0.005; its median random radius is 0.0197, docs/gaits.md section
+# 7) to where none does (0.09), 20 directions, three contact settings from issue 44's range
+# (the softest, 4 ms and friction 0.6, its far corner).
+CURVE_WALKER = "robust-toy"
+CURVE_SIZES = (0.005, 0.008, 0.012, 0.018, 0.027, 0.04, 0.06, 0.09)
+CURVE_DIRECTIONS = 20
+CURVE_SEED = 0
+CURVE_SETTINGS = ((1e-3, 1.0), (2e-3, 0.6), (4e-3, 0.6))
 
 
 def _starts(gait) -> list[tuple[str, float, np.ndarray]]:
@@ -86,61 +118,169 @@ def _model_walk(gait, walker: Walker, z0: np.ndarray) -> tuple[int, str, int, fl
     return CAP, "walked", 0, distance, elapsed
 
 
+def _mujoco_walk(gait, z0: np.ndarray, contact_time: float, friction: float):
+    """(MujocoWalk, how it ended) of at most CAP steps from ``z0``."""
+    walk = walk_in_mujoco(gait.params, z0, steps=CAP, timestep=TIMESTEP, friction=friction,
+                          contact_time=contact_time, max_time=2.0 * CAP * gait.step_time)
+    if walk.status == "completed":
+        outcome = "walked"
+    elif walk.message.startswith("no "):
+        outcome = "timed out"
+    elif "same foot" in walk.message and len(walk.feet) >= CAP:
+        outcome = "same foot twice, walked on"
+    elif "same foot" in walk.message:
+        outcome = "same foot twice"
+    else:
+        outcome = "fell"
+    return walk, outcome
+
+
 def measure() -> list[dict]:
     rows = []
     for name, path in WALKERS.items():
         gait = find_gait(load_params(path))
-        params, walker = gait.params, Walker(gait.params)
+        walker = Walker(gait.params)
         stable = bool(np.max(np.abs(gait.eigenvalues)) < 1.0)
         print(f"{name}: max |eigenvalue| {np.max(np.abs(gait.eigenvalues)):.4f} (stable: {stable}), "
               f"step time {gait.step_time:.4f} s, lean amplitude {math.degrees(gait.lean_amplitude):.3f} deg",
               flush=True)
-        max_time = 2.0 * CAP * gait.step_time
         for label, tip, z0 in _starts(gait):
             t = time.perf_counter()
             steps, reason, scuffs, distance, elapsed = _model_walk(gait, walker, z0)
             rows.append(dict(walker=name, engine="model", contact_time_ms="", friction="", start=label,
                              tip_deg=tip, steps=steps, outcome=reason, heel_strikes=steps, scuffs=scuffs,
-                             end_time_s=elapsed,
-                             end_distance=distance, last10_step_time_ms=math.nan,
-                             seconds=time.perf_counter() - t))
+                             bounces=0, last_strike_s=elapsed, end_time_s=elapsed, end_distance=distance,
+                             last10_step_time_ms=math.nan, seconds=time.perf_counter() - t))
             for contact_time, friction in SETTINGS:
                 t = time.perf_counter()
-                walk = walk_in_mujoco(params, z0, steps=CAP, timestep=TIMESTEP, friction=friction,
-                                      contact_time=contact_time, max_time=max_time)
-                if walk.status == "completed":
-                    outcome = "walked"
-                elif walk.message.startswith("no "):
-                    outcome = "timed out"
-                elif "same foot" in walk.message and len(walk.feet) >= CAP:
-                    # a landing foot that left the ramp for over 2 ms and landed again (a bounce):
-                    # walk_in_mujoco stops counting steps there, but the walker walked on
-                    outcome = "same foot twice, walked on"
-                elif "same foot" in walk.message:
-                    outcome = "same foot twice"
-                else:
-                    outcome = "fell"
+                walk, outcome = _mujoco_walk(gait, z0, contact_time, friction)
                 last = walk.step_times[-10:]
                 last_ms = round(1e3 * float(np.mean(last)), 3) if len(last) else math.nan
                 rows.append(dict(walker=name, engine="mujoco", contact_time_ms=1e3 * contact_time,
                                  friction=friction, start=label, tip_deg=tip, steps=walk.steps,
                                  outcome=outcome, heel_strikes=len(walk.feet), scuffs=walk.scuffs,
-                                 end_time_s=walk.duration,
-                                 end_distance=math.nan,
-                                 last10_step_time_ms=last_ms,
-                                 seconds=time.perf_counter() - t))
+                                 bounces=walk.bounces,
+                                 last_strike_s=float(walk.strikes[walk.steps - 1, 0]) if walk.steps else 0.0,
+                                 end_time_s=walk.duration, end_distance=math.nan,
+                                 last10_step_time_ms=last_ms, seconds=time.perf_counter() - t))
             print(f"  {label:18s} model {steps:2d} {reason:15s} | MuJoCo "
                   + "  ".join(f"{r['steps']:2d} {r['outcome']}" for r in rows[-len(SETTINGS):]), flush=True)
     return rows
 
 
-def main() -> None:
+def measure_curves() -> list[dict]:
+    """One row per push size, direction and engine setting (the module's docstring)."""
+    gait = find_gait(load_params(WALKERS[CURVE_WALKER]))
+    params, walker = gait.params, Walker(gait.params)
+    directions = random_directions(params, gait, CURVE_DIRECTIONS, CURVE_SEED)
+    rows = []
     start = time.perf_counter()
-    rows = measure()
-    with open(HERE / "basin_mujoco.csv", "w", newline="") as f:
+    for size in CURVE_SIZES:
+        for k, direction in enumerate(directions):
+            z0 = perturbed(params, gait, direction, size, walker)
+            t = time.perf_counter()
+            steps, reason, scuffs, _, _ = _model_walk(gait, walker, z0)
+            recovery = recovers(params, z0, gait, walker=walker)
+            rows.append(dict(walker=CURVE_WALKER, size=size, direction=k, engine="model", contact_time_ms="",
+                             friction="", walked=steps == CAP, steps=steps, outcome=reason,
+                             recovered=recovery.recovered, bounces=0, scuffs=scuffs,
+                             seconds=round(time.perf_counter() - t, 4)))
+            for contact_time, friction in CURVE_SETTINGS:
+                t = time.perf_counter()
+                walk, outcome = _mujoco_walk(gait, z0, contact_time, friction)
+                rows.append(dict(walker=CURVE_WALKER, size=size, direction=k, engine="mujoco",
+                                 contact_time_ms=1e3 * contact_time, friction=friction,
+                                 walked=walk.status == "completed", steps=walk.steps, outcome=outcome,
+                                 recovered="", bounces=walk.bounces, scuffs=walk.scuffs,
+                                 seconds=round(time.perf_counter() - t, 4)))
+        at = [r for r in rows if r["size"] == size]
+        counts = [sum(r["walked"] for r in at if r["engine"] == "model"),
+                  sum(r["recovered"] for r in at if r["engine"] == "model")]
+        counts += [sum(r["walked"] for r in at if r["contact_time_ms"] == 1e3 * c and r["friction"] == f)
+                   for c, f in CURVE_SETTINGS]
+        print(f"size {size:.4g}: walked 60 of {CURVE_DIRECTIONS}: model {counts[0]} (recovered {counts[1]}), "
+              + ", ".join(f"MuJoCo {1e3 * c:g} ms, friction {f:g}: {n}"
+                          for (c, f), n in zip(CURVE_SETTINGS, counts[2:], strict=True))
+              + f"  [{time.perf_counter() - start:.0f} s]", flush=True)
+    return rows
+
+
+def _read_curves() -> list[dict]:
+    with open(HERE / "basin_mujoco_curves.csv", newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def curve_summary(rows: list[dict]) -> list[tuple[str, np.ndarray, np.ndarray, int]]:
+    """(label, sizes, walking counts, directions) for the model's 60-step walks, its recoveries
+    and each MuJoCo setting; ``rows`` as read from the CSV (strings)."""
+    sizes = np.array(sorted({float(r["size"]) for r in rows}))
+    series = [("model: walks 60 steps", lambda r: r["engine"] == "model", "walked"),
+              ("model: recovers onto the gait", lambda r: r["engine"] == "model", "recovered")]
+    settings = sorted({(float(r["contact_time_ms"]), float(r["friction"]))
+                       for r in rows if r["engine"] == "mujoco"})
+    for c, f in settings:
+        series.append((f"MuJoCo {c:g} ms, friction {f:g}: walks 60 steps",
+                       lambda r, c=c, f=f: r["engine"] == "mujoco" and float(r["contact_time_ms"]) == c
+                       and float(r["friction"]) == f, "walked"))
+    out = []
+    for label, pick, column in series:
+        chosen = [r for r in rows if pick(r)]
+        n = len(chosen) // len(sizes)
+        counts = np.array([sum(r[column] == "True" for r in chosen if float(r["size"]) == s) for s in sizes])
+        out.append((label, sizes, counts, n))
+    return out
+
+
+def plot_curves() -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4.3))
+    series = curve_summary(_read_curves())
+    styles = ("o-", "s--", "^-", "v-", "d-", "x-")
+    for k, ((label, sizes, counts, n), style) in enumerate(zip(series, styles, strict=False)):
+        p = counts / n
+        apart = 1.02 ** (k - (len(series) - 1) / 2)  # equal series side by side, not on top
+        ax.errorbar(sizes * apart, p, yerr=np.sqrt(p * (1 - p) / n), fmt=style, capsize=3, label=label,
+                    mfc="none" if "--" in style else None)
+    ax.set_xscale("log")
+    ax.set_xlabel("push size (state_scale units)")
+    ax.set_ylabel(f"fraction of {n} random directions")
+    ax.set_ylim(-0.05, 1.05)
+    ax.set_title(f"{CURVE_WALKER}: pushes just after a heel strike, model and MuJoCo")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(HERE / "basin_mujoco_curves.png", dpi=110)
+    print("wrote docs/basin_mujoco_curves.png")
+
+
+def _write(path: Path, rows: list[dict]) -> None:
+    with open(path, "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--curves", action="store_true", help="the recovery curves instead of the starts")
+    parser.add_argument("--plot-only", action="store_true", help="redraw the curves' figure from the CSV")
+    args = parser.parse_args()
+    start = time.perf_counter()
+    if args.plot_only:
+        plot_curves()
+        return
+    if args.curves:
+        rows = measure_curves()
+        _write(HERE / "basin_mujoco_curves.csv", rows)
+        print(f"wrote docs/basin_mujoco_curves.csv ({len(rows)} rows) in {time.perf_counter() - start:.0f} s")
+        plot_curves()
+        return
+    rows = measure()
+    _write(HERE / "basin_mujoco.csv", rows)
     print(f"wrote docs/basin_mujoco.csv ({len(rows)} rows) in {time.perf_counter() - start:.0f} s")
 
 

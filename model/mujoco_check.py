@@ -30,7 +30,10 @@ bouncing heel strikes, slip, a foot whose curvature changes along its rim); test
 makes such walks.
 
 Heel strikes are read from the contacts: a foot's contact that begins after it has been off the
-ramp, ahead of the other foot's, is a heel strike; any other new contact of a foot is a scuff.
+ramp, ahead of the other foot's, is a heel strike; a new contact of the foot that made the last
+heel strike, soon after it and before the other foot has struck, is a bounce of that landing (the
+model's plastic strike cannot bounce; MuJoCo's soft one sometimes does); any other new contact of
+a foot is a scuff.
 
 The walk's angles are read from the two legs' orientations with the model's own inverse
 (:func:`~toywalk.model.kinematics.angles_from_rotations`, docs/model.md section 1): the left leg's
@@ -70,6 +73,14 @@ _CONTACT_TIME = 1e-3
 # A foot must have been off the ramp this long (s) before a new contact counts as a new touch, so
 # that the solver's contact chatter within one touch is not counted twice.
 _OFF_TIME = 2e-3
+# A new touch of the foot that made the last heel strike, within this time (s) after it and before
+# the other foot has struck, is that foot bouncing off the ramp and landing again, not a heel
+# strike. Measured: data/params/robust-toy.toml kicked (seed 5 of docs/make_basin_mujoco.py, 1 ms
+# contacts, friction 1) lands its right foot at 0.6681 s, leaves the ramp for over 2 ms and lands
+# again at 0.6751 s, 0.2 mm further on. 30 ms is four times that, and under a third of the
+# shortest gait step of a shipped round-footed walker (stable-toy's, 107 ms), so no real step of
+# the same foot fits in it; a same-foot touch after it still ends the walk as a fall.
+_BOUNCE_TIME = 3e-2
 # The contact model's other settings, written into the MJCF and into a trajectory's metadata.
 # solimp (0.99, 0.999, 0.1 mm): the constraint's impedance, 0.99 at first touch rising to 0.999 at
 # 0.1 mm of penetration. Elliptic friction cones with impratio 10 and MuJoCo's no-slip pass (10
@@ -287,15 +298,16 @@ class MujocoWalk:
     ----------
     status : str
         ``"completed"`` (the steps asked for) or ``"fell"`` (a hip came down to half the leg
-        length, the same foot struck twice running, or the time ran out first; ``message`` says
-        which).
+        length, the same foot struck twice running (the second touch too late to be a bounce,
+        :attr:`bounces`), or the time ran out first; ``message`` says which).
     message : str
     strikes : ndarray, shape (n, 3)
         Heel strikes: time (s), the landing foot's contact position along the ramp and across it (m).
     feet : list of str
         The landing foot of each heel strike, 'L' or 'R'.
     scuffs : int
-        New contacts of a foot that were not heel strikes (the swing foot touching the ramp).
+        New contacts of a foot that were neither heel strikes nor bounces (the swing foot touching
+        the ramp).
     steps : int
         Heel strikes that alternate feet (right, left, ...), counted from the start, which is the
         left foot's.
@@ -334,6 +346,10 @@ class MujocoWalk:
     energy : ndarray, shape (n_samples,)
         The walker's mechanical energy, kinetic and gravitational (J; MuJoCo's ``mj_energyPos``
         and ``mj_energyVel``): constant between heel strikes in the model.
+    bounces : int
+        New contacts of the foot that made the last heel strike, within 30 ms after it and before
+        the other foot struck: the landing foot left the ramp (for over 2 ms) and landed again. They
+        are not heel strikes (:attr:`strikes` and :attr:`steps` do not count them), nor scuffs.
     """
 
     status: str
@@ -356,6 +372,7 @@ class MujocoWalk:
     penetration: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
     slip_speed: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
     energy: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
+    bounces: int = 0
 
     @property
     def lean(self) -> np.ndarray:
@@ -566,7 +583,7 @@ def walk_in_mujoco(params: Params, z0: np.ndarray, steps: int = 20, timestep: fl
                         math.hypot(slip[0], slip[1]), data.energy[0] + data.energy[1]))
         stances.append(stance)
 
-    scuffs, n_step = 0, 0
+    scuffs, bounces, n_step = 0, 0, 0
     sample()
     status, message = "fell", f"no {steps} heel strikes within {max_time:.3g} s"
     while data.time < max_time:
@@ -582,7 +599,10 @@ def walk_in_mujoco(params: Params, z0: np.ndarray, steps: int = 20, timestep: fl
             if data.time - last_touch[foot] > _OFF_TIME:  # a new touch
                 pos = data.contact.pos[i]
                 other = "R" if foot == "L" else "L"
-                if pos[0] > _foot_position(data, model, bodies[other], params, sole)[0]:
+                last_foot, last_time = (landed[-1], strikes[-1][0]) if landed else ("L", 0.0)
+                if foot == last_foot and data.time - last_time < _BOUNCE_TIME:
+                    bounces += 1
+                elif pos[0] > _foot_position(data, model, bodies[other], params, sole)[0]:
                     strikes.append((data.time, float(pos[0]), float(pos[1])))
                     landed.append(foot)
                 else:
@@ -616,7 +636,8 @@ def walk_in_mujoco(params: Params, z0: np.ndarray, steps: int = 20, timestep: fl
                       duration=float(data.time), times=table[:, 0], angles=table[:, 1:5],
                       stance=np.array(stances), contact=table[:, 5:7], start=z0.copy(),
                       settings=settings, rates=table[:, 7:11], stance_force=table[:, 11],
-                      penetration=table[:, 12], slip_speed=table[:, 13], energy=table[:, 14])
+                      penetration=table[:, 12], slip_speed=table[:, 13], energy=table[:, 14],
+                      bounces=bounces)
 
 
 def _foot_position(data, model, body: int, params: Params, foot: _Foot) -> np.ndarray:
@@ -671,9 +692,10 @@ def mujoco_trajectory(walk: MujocoWalk, params: Params, parameters: str | None =
         "noise_sd": 0.0,
         "position_noise_sd": 0.0,
         "timestamps": f"MuJoCo simulation times, every {every} integration steps from the start",
-        "events": "a foot's first contact after 2 ms off the ramp, ahead of the other foot's; its "
-                  "time to one integration step, its position MuJoCo's contact point",
-        "status": walk.status, "message": walk.message, "scuffs": walk.scuffs,
+        "events": "a foot's first contact after 2 ms off the ramp, ahead of the other foot's and not "
+                  "a bounce (the last heel strike's foot again within 30 ms); its time to one "
+                  "integration step, its position MuJoCo's contact point",
+        "status": walk.status, "message": walk.message, "scuffs": walk.scuffs, "bounces": walk.bounces,
         "software": _version(),
     }
     return TrajectoryTable(walk.times, signals, walk.stance, events, metadata)

@@ -11,7 +11,7 @@ import math
 import mujoco
 import numpy as np
 import pytest
-from toywalk.model import Walker, load_params, solve_fixed_point
+from toywalk.model import Walker, find_gait, load_params, solve_fixed_point
 from toywalk.model.kinematics import angles_from_rotations
 from toywalk.model.mujoco_check import build_mjcf, initial_state, mujoco_trajectory, walk_in_mujoco
 from toywalk.model.simulate import simulate
@@ -261,3 +261,22 @@ def test_the_stable_walker_scuffs_and_falls_in_mujoco():
     walk = walk_in_mujoco(params, gait.fixed_point, steps=20)
     assert walk.status == "fell" and walk.scuffs >= 1
     assert walk.duration < 0.6
+
+
+def test_a_landing_foot_that_bounces_is_not_a_second_heel_strike():
+    """data/params/robust-toy.toml from its fixed point with the four rates kicked by 0.02 rad/s,
+    the signs of seed 5 as docs/make_basin_mujoco.py draws them, at 1 ms contacts and friction 1:
+    its right foot lands at 0.668 s, leaves the ramp for over 2 ms and lands again 7 ms later
+    (measured: 0.6681 and 0.6751 s), and the walker walks on. The second touch is a bounce, counted
+    as one, and the sixth heel strike is the left foot's a step later (0.803 s; the gait's step is
+    134.5 ms, checked to within the kick's spread of 10 ms). Before bounces were told apart the walk
+    ended there as the same foot striking twice. About 0.2 s."""
+    gait = find_gait(load_params(DATA / "params" / "robust-toy.toml"))
+    z0 = gait.fixed_point.copy()
+    z0[[1, 3, 5, 7]] += 0.02 * np.random.default_rng(5).choice([-1.0, 1.0], 4)
+    walk = walk_in_mujoco(gait.params, z0, steps=6, friction=1.0, contact_time=1e-3)
+    assert walk.status == "completed" and walk.steps == 6
+    assert walk.bounces == 1 and walk.scuffs == 0
+    assert walk.feet == ["R", "L", "R", "L", "R", "L"]
+    assert walk.strikes[4, 0] == pytest.approx(0.668, abs=1e-3)
+    assert walk.step_times[5] == pytest.approx(gait.step_time, abs=0.01)
