@@ -18,7 +18,7 @@ from toywalk.model.simulate import simulate
 from toywalk.model.trajectory import SIGNALS, read_trajectory, write_trajectory
 from toywalk.sysid.measurement import observations
 
-from ..conftest import DATA
+from ..conftest import DATA, ROOT
 from .documented import Z_CLEARING, Z_STABLE
 
 CLEARING = DATA / "params" / "clearing-toy.toml"
@@ -264,14 +264,15 @@ def test_the_stable_walker_scuffs_and_falls_in_mujoco():
 
 
 def test_a_landing_foot_that_bounces_is_not_a_second_heel_strike():
-    """data/params/robust-toy.toml from its fixed point with the four rates kicked by 0.02 rad/s,
+    """docs/robust_best.toml (the design of docs/make_robust_design.py, docs/gaits.md section 7)
+    from its fixed point with the four rates kicked by 0.02 rad/s,
     the signs of seed 5 as docs/make_basin_mujoco.py draws them, at 1 ms contacts and friction 1:
     its right foot lands at 0.668 s, leaves the ramp for over 2 ms and lands again 7 ms later
     (measured: 0.6681 and 0.6751 s), and the walker walks on. The second touch is a bounce, counted
     as one, and the sixth heel strike is the left foot's a step later (0.803 s; the gait's step is
     134.5 ms, checked to within the kick's spread of 10 ms). Before bounces were told apart the walk
     ended there as the same foot striking twice. About 0.2 s."""
-    gait = find_gait(load_params(DATA / "params" / "robust-toy.toml"))
+    gait = find_gait(load_params(ROOT / "docs" / "robust_best.toml"))
     z0 = gait.fixed_point.copy()
     z0[[1, 3, 5, 7]] += 0.02 * np.random.default_rng(5).choice([-1.0, 1.0], 4)
     walk = walk_in_mujoco(gait.params, z0, steps=6, friction=1.0, contact_time=1e-3)
