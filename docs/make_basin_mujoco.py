@@ -4,10 +4,17 @@ section 8).
     OPENBLAS_NUM_THREADS=1 MUJOCO_GL=egl .venv/bin/python docs/make_basin_mujoco.py   # about 3.5 minutes
     OPENBLAS_NUM_THREADS=1 MUJOCO_GL=egl .venv/bin/python docs/make_basin_mujoco.py --curves
     OPENBLAS_NUM_THREADS=1 MUJOCO_GL=egl .venv/bin/python docs/make_basin_mujoco.py --plot-only
+    OPENBLAS_NUM_THREADS=1 MUJOCO_GL=egl .venv/bin/python docs/make_basin_mujoco.py \
+        --launches docs/launch_converging.toml                                      # about 5 minutes
 
-**Starts** (the default). For data/params/robust-toy.toml (the design search's best, section 7,
-docs/robust_best.toml shipped) and data/params/clearing-toy.toml, from three kinds of start, each
-walked at most 60 steps:
+**Hand launches** (``--launches P.toml``): the walker's hand launch at 0.5 to 2.5 times its lean
+amplitude in the model (``hand_launch``, up to 200 steps) and in MuJoCo (200 heel strikes) at the
+six contact settings below; docs/launch_mujoco_P.csv, one row per tip and engine setting
+(``steps``, ``outcome``, ``scuffs``, ``bounces``, ``last10_step_time_ms``).
+
+**Starts** (the default). For data/params/robust-toy.toml (the shipped robust walker, section 7),
+docs/robust_best.toml (the rigid design search's best, which robust-toy was made from) and
+data/params/clearing-toy.toml, from three kinds of start, each walked at most 60 steps:
 
 - the gait's fixed point (the reference: does the engine walk the gait at all?);
 - the hand launch at 1.5 and 2.5 times the gait's lean amplitude (``launch_state``: at rest, legs
@@ -33,8 +40,8 @@ walk, the fall's time), ``end_distance`` (model: from the fixed point at its las
 strike, state_scale units), ``last10_step_time_ms`` (MuJoCo: mean of its last ten steps), and
 the seconds each walk took.
 
-**Recovery curves** (``--curves``; about 10 minutes). For robust-toy, pushes of 8 sizes (0.005
-to 0.09 state_scale units) along 20 random directions (``random_directions``, seed 0; the same
+**Recovery curves** (``--curves``; about 20 minutes). For robust-toy, pushes of 9 sizes (0.005
+to 0.135 state_scale units) along 20 random directions (``random_directions``, seed 0; the same
 at every size), each start ``perturbed`` onto the post-strike surface (section 5) and given to
 both engines: the model's step map and ``walk_in_mujoco`` at (1 ms, friction 1), (2 ms, 0.6) and
 (4 ms, 0.6).
@@ -58,7 +65,7 @@ from pathlib import Path
 
 import numpy as np
 from toywalk.model import Walker, find_gait, load_params
-from toywalk.model.basin import launch_state, perturbed, random_directions, recovers
+from toywalk.model.basin import hand_launch, launch_state, perturbed, random_directions, recovers
 from toywalk.model.gait import state_scale
 from toywalk.model.mujoco_check import walk_in_mujoco
 from toywalk.model.walker import StepFailure
@@ -66,6 +73,7 @@ from toywalk.model.walker import StepFailure
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 WALKERS = {"robust-toy": ROOT / "data" / "params" / "robust-toy.toml",
+           "robust_best": HERE / "robust_best.toml",
            "clearing-toy": ROOT / "data" / "params" / "clearing-toy.toml"}
 CAP = 60  # steps walked at most
 LAUNCH_MULTIPLES = (1.5, 2.5)  # tip angles, times the gait's lean amplitude (issue 44)
@@ -76,14 +84,19 @@ SEEDS = range(8)
 SETTINGS = ((1e-3, 2.0), (1e-3, 1.0), (2e-3, 1.0), (2e-3, 0.6), (4e-3, 2.0), (4e-3, 0.6))
 TIMESTEP = 1e-4  # s, walk_in_mujoco's default
 # Recovery curves (--curves): robust-toy, push sizes (state_scale units) from where every random
-# direction walks in the model (0.005; its median random radius is 0.0197, docs/gaits.md section
-# 7) to where none does (0.09), 20 directions, three contact settings from issue 44's range
+# direction walks in the model (0.005; its median random radius is 0.032, docs/gaits.md section
+# 7) to where none does (0.135), 20 directions, three contact settings from issue 44's range
 # (the softest, 4 ms and friction 0.6, its far corner).
 CURVE_WALKER = "robust-toy"
-CURVE_SIZES = (0.005, 0.008, 0.012, 0.018, 0.027, 0.04, 0.06, 0.09)
+CURVE_SIZES = (0.005, 0.008, 0.012, 0.018, 0.027, 0.04, 0.06, 0.09, 0.135)
 CURVE_DIRECTIONS = 20
 CURVE_SEED = 0
 CURVE_SETTINGS = ((1e-3, 1.0), (2e-3, 0.6), (4e-3, 0.6))
+# Hand launches (--launches P.toml): tips as multiples of the lean amplitude, around the range in
+# which docs/launch_converging.toml's converges in the model (1-1.2) and out to the issue's 2.5;
+# heel strikes walked at most (a converging launch takes 100-150 steps in the model).
+LAUNCH_TIPS = (0.5, 0.8, 1.0, 1.1, 1.2, 1.5, 2.0, 2.5)
+LAUNCH_CAP = 200
 
 
 def _starts(gait) -> list[tuple[str, float, np.ndarray]]:
@@ -118,15 +131,15 @@ def _model_walk(gait, walker: Walker, z0: np.ndarray) -> tuple[int, str, int, fl
     return CAP, "walked", 0, distance, elapsed
 
 
-def _mujoco_walk(gait, z0: np.ndarray, contact_time: float, friction: float):
-    """(MujocoWalk, how it ended) of at most CAP steps from ``z0``."""
-    walk = walk_in_mujoco(gait.params, z0, steps=CAP, timestep=TIMESTEP, friction=friction,
-                          contact_time=contact_time, max_time=2.0 * CAP * gait.step_time)
+def _mujoco_walk(gait, z0: np.ndarray, contact_time: float, friction: float, cap: int = CAP):
+    """(MujocoWalk, how it ended) of at most ``cap`` steps from ``z0``."""
+    walk = walk_in_mujoco(gait.params, z0, steps=cap, timestep=TIMESTEP, friction=friction,
+                          contact_time=contact_time, max_time=2.0 * cap * gait.step_time)
     if walk.status == "completed":
         outcome = "walked"
     elif walk.message.startswith("no "):
         outcome = "timed out"
-    elif "same foot" in walk.message and len(walk.feet) >= CAP:
+    elif "same foot" in walk.message and len(walk.feet) >= cap:
         outcome = "same foot twice, walked on"
     elif "same foot" in walk.message:
         outcome = "same foot twice"
@@ -165,6 +178,34 @@ def measure() -> list[dict]:
                                  last10_step_time_ms=last_ms, seconds=time.perf_counter() - t))
             print(f"  {label:18s} model {steps:2d} {reason:15s} | MuJoCo "
                   + "  ".join(f"{r['steps']:2d} {r['outcome']}" for r in rows[-len(SETTINGS):]), flush=True)
+    return rows
+
+
+def measure_launches(path: Path) -> list[dict]:
+    """The hand launch of the walker in ``path`` at :data:`LAUNCH_TIPS` times its lean amplitude:
+    ``hand_launch`` in the model (up to :data:`LAUNCH_CAP` steps; converged or not) and
+    ``walk_in_mujoco`` from the same ``launch_state`` (:data:`LAUNCH_CAP` heel strikes) at every
+    contact setting of :data:`SETTINGS`."""
+    gait = find_gait(load_params(path))
+    tips = [m * gait.lean_amplitude for m in LAUNCH_TIPS]
+    model = hand_launch(gait.params, tips, gait=gait, steps=LAUNCH_CAP).results[0]
+    print(f"{path.name}: max |eigenvalue| {gait.max_abs_eigenvalue:.4f}, step {1e3 * gait.step_time:.1f} ms, "
+          f"lean amplitude {math.degrees(gait.lean_amplitude):.3f} deg", flush=True)
+    rows = []
+    for m, tip, launch in zip(LAUNCH_TIPS, tips, model, strict=True):
+        rows.append(dict(walker=path.stem, multiple=m, tip_deg=math.degrees(tip), engine="model",
+                         contact_time_ms="", friction="", steps=launch.steps, outcome=launch.reason,
+                         scuffs=launch.scuffs, bounces=0, last10_step_time_ms=math.nan))
+        for contact_time, friction in SETTINGS:
+            walk, outcome = _mujoco_walk(gait, launch_state(tip), contact_time, friction, LAUNCH_CAP)
+            last = walk.step_times[-10:]
+            last_ms = round(1e3 * float(np.mean(last)), 3) if len(last) else math.nan
+            rows.append(dict(walker=path.stem, multiple=m, tip_deg=math.degrees(tip), engine="mujoco",
+                             contact_time_ms=1e3 * contact_time, friction=friction, steps=walk.steps,
+                             outcome=outcome, scuffs=walk.scuffs, bounces=walk.bounces,
+                             last10_step_time_ms=last_ms))
+        print(f"  {m:g} x lean: model {launch.steps} {launch.reason} | MuJoCo "
+              + "  ".join(f"{r['steps']} {r['outcome']}" for r in rows[-len(SETTINGS):]), flush=True)
     return rows
 
 
@@ -268,8 +309,16 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--curves", action="store_true", help="the recovery curves instead of the starts")
     parser.add_argument("--plot-only", action="store_true", help="redraw the curves' figure from the CSV")
+    parser.add_argument("--launches", type=Path, metavar="P.toml",
+                        help="this walker's hand launches in both engines instead (docs/launch_mujoco_P.csv)")
     args = parser.parse_args()
     start = time.perf_counter()
+    if args.launches:
+        rows = measure_launches(args.launches)
+        out = HERE / f"launch_mujoco_{args.launches.stem}.csv"
+        _write(out, rows)
+        print(f"wrote {out.relative_to(ROOT)} ({len(rows)} rows) in {time.perf_counter() - start:.0f} s")
+        return
     if args.plot_only:
         plot_curves()
         return
