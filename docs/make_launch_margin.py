@@ -1,0 +1,387 @@
+"""The hand launch against the fore-aft margin: docs/gaits.md section 7's "what to do next", measured.
+
+Section 7 found no walker that walks into its gait from a hand launch, and blamed the fore-aft
+margin h - r (the centre of mass above the feet's fore-aft centre of curvature): with a positive
+one the walker at rest falls forward, the first step comes too early for the swing leg, and every
+stable gait found had a margin of 15-46 mm. This script follows the stable gaits of
+data/params/robust-toy.toml and data/params/clearing-toy.toml towards a smaller margin by
+pseudo-arclength continuation (:func:`toywalk.model.continuation.continue_branch`, Newton from the
+previous fixed point, folds and stability changes reported) in
+
+- ``foot_radius`` r (raised; the box of docs/make_clearance_design.py ends at 30 mm, the paths go
+  on to 60 mm, past a zero margin),
+- ``com_offset[2]`` d_z (lowered, to -148 mm: the legs' centre of mass stays above the foot's
+  bottom, 150 mm below the hip),
+- ``slope`` (down to 0.01 rad: the gait gets slower, its start closer to rest),
+
+and measures every branch point: the margin (:func:`fore_aft_margin`), max |eigenvalue|, the swing
+foot's clearance, ``can_stand``, step time, stride, the stance leg's rate just after heel strike
+and the walker's kinetic energy there (over M g l), the distance of a launch from rest to the
+fixed point, and the hand launch at 0.5-3 x the gait's lean amplitude as docs/make_robust_design.py
+walks and scores it (:func:`launch_walk`: steps walked, why it stopped, closest approach d_min to the
+fixed point in state_scale units, 150 steps at most). A grid of :data:`GRID` x :data:`GRID`
+designs, foot radius (so margin) against slope on robust-toy's r path, each gait followed in slope
+from the path by :func:`toywalk.model.gait.continue_gait`, gives the 2D picture. The shipped
+walkers with a stable gait (and paper-toy, whose gait is the real toy's, unstable) are measured
+the same way.
+
+Outputs: docs/launch_margin.csv (one row a design: ``path`` names the path, ``grid`` the grid,
+``shipped`` the shipped walkers), docs/launch_margin.png, and, if any design's launches at 1.5
+and 2.5 x lean both walk :data:`HEADLINE_STEPS` steps, docs/launch_best.toml (the design that
+comes closest, its fixed point as ``[gait] start``).
+
+Run (2 cores shared with another job, compiled kernels cached: about 8 minutes, most of it
+``can_stand`` at 0.5 s a design)::
+
+    OPENBLAS_NUM_THREADS=1 .venv/bin/python docs/make_launch_margin.py
+    OPENBLAS_NUM_THREADS=1 .venv/bin/python docs/make_launch_margin.py --plot-only
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import dataclasses
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+from toywalk.model import GaitNotFound, Walker, can_stand, load_params, save_params, solve_fixed_point
+from toywalk.model.basin import LAUNCH_MULTIPLES, launch_state
+from toywalk.model.continuation import continue_branch
+from toywalk.model.gait import continue_gait, state_scale
+from toywalk.model.parameters import ParameterError
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+# The launch as the design search walks and scores it, and its fore-aft margin.
+from make_clearance_design import Z_STABLE  # noqa: E402
+from make_robust_design import fore_aft_margin, launch_walk  # noqa: E402
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+#: (walker, continued parameter, end value): the paths from the two shipped feasible walkers.
+PATHS = (
+    ("robust-toy", "foot_radius", 0.06),
+    ("robust-toy", "com_offset[2]", -0.148),
+    ("robust-toy", "slope", 0.01),
+    ("clearing-toy", "foot_radius", 0.06),
+    ("clearing-toy", "com_offset[2]", -0.148),
+    ("clearing-toy", "slope", 0.01),
+)
+#: Largest arclength step of the paths, in units of the path's range: 0.02 of 48 mm of foot radius
+#: is 1 mm, fine enough to stay on branches that section 7's search (steps of 0.3-10 % of the box
+#: in all eleven parameters at once) kept losing.
+DS_MAX = 0.02
+#: Shipped walkers measured for comparison: (file, its gait is stable).
+SHIPPED = ("robust-toy", "clearing-toy", "stable-toy", "paper-toy")
+#: The grid: GRID foot radii along robust-toy's r path x GRID slopes.
+GRID = 15
+GRID_RADII = (0.0114591, 0.05)  # m: robust-toy's own to a margin of about -7 mm
+GRID_SLOPES = (0.01, 0.10)  # rad
+#: The slope paths from the grid's slowest stable gaits: how low they are followed, and how often
+#: ``can_stand`` is checked on them.
+FOLD_END = 0.005  # rad
+FOLD_STAND = 10
+#: A launch that walks this many steps at 1.5 and 2.5 x lean is the headline (issue 44's tips).
+HEADLINE_STEPS = 30
+HEADLINE_MULTIPLES = (1.5, 2.5)
+COLUMNS = ["path", "walker", "parameter", "value", "foot_radius", "com_offset[2]", "slope", "margin_mm",
+           "max_abs_eigenvalue", "stable", "clearance_mm", "can_stand", "step_time", "stride_mm", "lean_deg",
+           "stance_rate", "stance_rate_scaled", "kinetic_mgl", "rest_distance",
+           *(f"{k}_{m:g}" for m in LAUNCH_MULTIPLES for k in ("steps", "reason", "dmin")),
+           "best_dmin", *(f"z{i}" for i in range(8))]
+
+
+def kinetic_energy(walker: Walker, z: np.ndarray) -> float:
+    """The walker's kinetic energy at public state ``z`` (J): its energy less that of the same
+    configuration at rest."""
+    rest = np.array(z, dtype=float)
+    rest[1::2] = 0.0
+    return walker.energy(walker.full_state(z)) - walker.energy(walker.full_state(rest))
+
+
+def measure(params, gait, path: str, walker_name: str, parameter: str, value: float,
+            stand: bool = True) -> dict:
+    """One design's row of :data:`COLUMNS`: its gait, ``can_stand`` and its hand launches."""
+    walker = Walker(params)
+    z = gait.fixed_point
+    scale = state_scale(params)
+    l, g = params.leg_length, params.gravity
+    row = {"path": path, "walker": walker_name, "parameter": parameter, "value": value,
+           "foot_radius": params.foot_radius, "com_offset[2]": params.com_offset[2], "slope": params.slope,
+           "margin_mm": 1e3 * fore_aft_margin(params), "max_abs_eigenvalue": gait.max_abs_eigenvalue,
+           "stable": int(gait.max_abs_eigenvalue < 1), "clearance_mm": 1e3 * gait.clearance,
+           "can_stand": int(can_stand(params).can_stand) if stand else "",
+           "step_time": gait.step_time, "stride_mm": 1e3 * gait.stride_length,
+           "lean_deg": math.degrees(gait.lean_amplitude), "stance_rate": z[5],
+           "stance_rate_scaled": z[5] * math.sqrt(l / g),
+           "kinetic_mgl": kinetic_energy(walker, z) / (params.total_mass * g * l),
+           "rest_distance": float(np.linalg.norm((launch_state(1.5 * gait.lean_amplitude) - z) / scale)),
+           **{f"z{i}": v for i, v in enumerate(z)}}
+    for m in LAUNCH_MULTIPLES:
+        walk = launch_walk(walker, gait, m * gait.lean_amplitude)
+        row.update({f"steps_{m:g}": walk["steps"], f"reason_{m:g}": walk["reason"],
+                    f"dmin_{m:g}": walk["dmin"]})
+    row["best_dmin"] = min(row[f"dmin_{m:g}"] for m in LAUNCH_MULTIPLES)
+    return row
+
+
+def follow(params, parameter: str, end: float, z_start: np.ndarray, path: str, walker_name: str,
+           stand_every: int = 1, max_points: int = 400) -> list[dict]:
+    """The gait of ``params`` (near ``z_start``) followed to ``parameter = end`` by
+    :func:`continue_branch`, every branch point measured (``can_stand`` at every ``stand_every``-th
+    point and the last)."""
+    t0 = time.perf_counter()
+    branch = continue_branch(params, parameter, params.get(parameter), end, max_points=max_points, ds=0.005,
+                             ds_max=DS_MAX, z_start=np.asarray(z_start, dtype=float), planar=False)
+    print(f"{path}: {len(branch.points)} points, {branch.status} ({branch.message}), "
+          f"{time.perf_counter() - t0:.0f} s", flush=True)
+    for event in branch.events:
+        print(f"  {event.kind} at {event.value:.6g}: {event.detail}", flush=True)
+    rows = []
+    for k, point in enumerate(branch.points):
+        p = params.replace(**{parameter: point.value})
+        try:
+            gait = solve_fixed_point(Walker(p), point.fixed_point)
+        except GaitNotFound as err:
+            print(f"  {parameter} = {point.value:.6g}: the branch point does not solve again ({err})")
+            continue
+        stand = k % stand_every == 0 or k == len(branch.points) - 1
+        rows.append(measure(p, gait, path, walker_name, parameter, point.value, stand=stand))
+    _report(rows)
+    print(f"  measured in {time.perf_counter() - t0:.0f} s", flush=True)
+    return rows
+
+
+def follow_shipped(walker_name: str, parameter: str, end: float) -> list[dict]:
+    """A path of :data:`PATHS`: from the shipped walker's gait (its ``[gait] start``)."""
+    params = load_params(ROOT / "data" / "params" / f"{walker_name}.toml")
+    return follow(params, parameter, end, np.array(params.gait_start), f"{walker_name} {parameter}",
+                  walker_name)
+
+
+def to_fold(grid_rows: list[dict]) -> list[dict]:
+    """For each grid radius, its gait at the lowest grid slope where it is stable, followed down in
+    slope (to :data:`FOLD_END`) until the branch folds back: the slow end of the stable window,
+    where the gait starts each step closest to rest. ``can_stand`` at every :data:`FOLD_STAND`-th
+    point (on every path above it changes exactly where the fore-aft margin crosses 0, which the
+    slope does not move)."""
+    params = load_params(ROOT / "data" / "params" / "robust-toy.toml")
+    rows = []
+    for r in sorted({q["value"] for q in grid_rows}):
+        stable = [q for q in grid_rows if q["value"] == r and q["stable"] == 1]
+        if not stable:
+            continue
+        low = min(stable, key=lambda q: q["slope"])
+        p = params.replace(foot_radius=float(r), slope=float(low["slope"]))
+        z = np.array([low[f"z{i}"] for i in range(8)])
+        rows += follow(p, "slope", FOLD_END, z, f"fold r {1e3 * r:.1f} mm", "robust-toy",
+                       stand_every=FOLD_STAND, max_points=150)
+    return rows
+
+
+def _report(rows: list[dict]) -> None:
+    for r in rows[:: max(1, len(rows) // 12)] + rows[-1:]:
+        print(f"  {r['parameter']} {r['value']:.5g}: margin {r['margin_mm']:6.2f} mm, |lambda| "
+              f"{r['max_abs_eigenvalue']:.3f}, clear {r['clearance_mm']:.2f} mm, stands {r['can_stand']}, "
+              f"T {r['step_time']:.3f} s, stride {r['stride_mm']:.0f} mm, rate {r['stance_rate']:.2f} rad/s, "
+              f"K/Mgl {r['kinetic_mgl']:.4f}; launch steps " + " ".join(
+                  f"{r[f'steps_{m:g}']}{r[f'reason_{m:g}'][:4]}" for m in LAUNCH_MULTIPLES)
+              + f", d_min {r['best_dmin']:.3f}", flush=True)
+
+
+def grid(rows_r: list[dict]) -> list[dict]:
+    """:data:`GRID` foot radii on robust-toy's r path x :data:`GRID` slopes: each radius's gait
+    from the nearest path point, then followed in slope each way from robust-toy's slope by
+    :func:`continue_gait`; a slope past where the gait is lost gets no row."""
+    params = load_params(ROOT / "data" / "params" / "robust-toy.toml")
+    radii = np.linspace(*GRID_RADII, GRID)
+    slopes = np.linspace(*GRID_SLOPES, GRID)
+    out = []
+    t0 = time.perf_counter()
+    for r in radii:
+        near = min(rows_r, key=lambda q: abs(q["value"] - r))
+        base = params.replace(foot_radius=float(r))
+        try:
+            gait0 = solve_fixed_point(Walker(base), np.array([near[f"z{i}"] for i in range(8)]))
+        except GaitNotFound:
+            continue
+        for side in (slopes[slopes < base.slope][::-1], slopes[slopes >= base.slope]):
+            gait, p = gait0, base
+            for s in side:
+                target = base.replace(slope=float(s))
+                try:
+                    gait = continue_gait(p, target, gait.fixed_point, planar=False)
+                except (GaitNotFound, ParameterError):
+                    break
+                p = target
+                out.append(measure(p, gait, "grid", "robust-toy", "foot_radius slope", float(r)))
+        print(f"grid r = {1e3 * r:.1f} mm: {sum(q['value'] == r for q in out)} slopes with a gait, "
+              f"{time.perf_counter() - t0:.0f} s", flush=True)
+    return out
+
+
+def shipped() -> list[dict]:
+    rows = []
+    for name in SHIPPED:
+        params = load_params(ROOT / "data" / "params" / f"{name}.toml")
+        start = params.gait_start if params.gait_start is not None else Z_STABLE  # stable-toy's has none
+        gait = solve_fixed_point(Walker(params), np.array(start))
+        rows.append(measure(params, gait, "shipped", name, "", math.nan))
+    _report(rows)
+    return rows
+
+
+def headline(rows: list[dict]) -> dict | None:
+    """The design whose launches at :data:`HEADLINE_MULTIPLES` x lean both walk
+    :data:`HEADLINE_STEPS` steps with the closest approach, if any."""
+    good = [r for r in rows if r["path"] != "shipped" and r["stable"] == 1
+            and all(int(r[f"steps_{m:g}"]) >= HEADLINE_STEPS for m in HEADLINE_MULTIPLES)]
+    return min(good, key=lambda r: float(r["best_dmin"])) if good else None
+
+
+def write_best(row: dict) -> None:
+    params = load_params(ROOT / "data" / "params" / f"{row['walker']}.toml")
+    params = params.replace(foot_radius=float(row["foot_radius"]), slope=float(row["slope"]),
+                            **{"com_offset[2]": float(row["com_offset[2]"])})
+    z = tuple(float(row[f"z{i}"]) for i in range(8))
+    save_params(dataclasses.replace(params, gait_start=z), HERE / "launch_best.toml",
+                header=f"A walker launched by hand from docs/make_launch_margin.py ({row['path']}): "
+                       f"fore-aft margin {float(row['margin_mm']):.2f} mm, max |eigenvalue| "
+                       f"{float(row['max_abs_eigenvalue']):.3f}, clearance "
+                       f"{float(row['clearance_mm']):.2f} mm, can_stand {row['can_stand']};\nhand launch "
+                       f"steps at 1.5 / 2.5 x lean {row['steps_1.5']} / {row['steps_2.5']} "
+                       f"({row['reason_1.5']} / {row['reason_2.5']}). [gait] start is its fixed point.")
+
+
+def _fmt(v, digits: int = 7):
+    return f"{v:.{digits}g}" if isinstance(v, float) else v
+
+
+def _read(path: Path) -> list[dict]:
+    with open(path) as f:
+        rows = list(csv.DictReader(f))
+    for r in rows:
+        for k, v in r.items():
+            try:
+                r[k] = float(v)
+            except ValueError:
+                pass
+    return rows
+
+
+def plot(rows: list[dict]) -> None:
+    """docs/launch_margin.png: (a) max |eigenvalue| and (b) launch steps along the r and d_z paths
+    against the fore-aft margin; (c) the closest approach of the launches against the gait's kinetic
+    energy at heel strike, every design; (d) the grid of foot radius (margin) x slope."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(2, 2, figsize=(12, 9))
+    colours = {"robust-toy foot_radius": "tab:blue", "robust-toy com_offset[2]": "tab:orange",
+               "clearing-toy foot_radius": "tab:red", "clearing-toy com_offset[2]": "tab:purple"}
+    for path, colour in colours.items():
+        sel = [r for r in rows if r["path"] == path]
+        x = [r["margin_mm"] for r in sel]
+        axes[0, 0].plot(x, [r["max_abs_eigenvalue"] for r in sel], "-", color=colour, label=path)
+        stands = [r for r in sel if r["can_stand"] == 1]
+        axes[0, 0].plot([r["margin_mm"] for r in stands], [r["max_abs_eigenvalue"] for r in stands], "x",
+                        color=colour, ms=3)
+        for m, style in ((1.5, ":"), (2.5, "--")):
+            axes[0, 1].plot(x, [r[f"steps_{m:g}"] for r in sel], style, color=colour)
+    ax = axes[0, 0]
+    ax.axhline(1, color="0.5", lw=0.8)
+    ax.axvline(0, color="0.5", lw=0.8)
+    ax.set_ylim(0.8, 1.3)
+    ax.set_xlabel("fore-aft margin h - r (mm)")
+    ax.set_ylabel("max |eigenvalue| (x: can stand)")
+    ax.set_title("(a) the paths in foot radius and leg COM height", fontsize=9)
+    ax.legend(fontsize=7)
+    ax = axes[0, 1]
+    ax.set_xlabel("fore-aft margin h - r (mm)")
+    ax.set_ylabel("steps walked from a launch at 1.5 (:) and 2.5 (--) x lean")
+    ax.set_title("(b) the same paths: hand launches", fontsize=9)
+    ax.axvline(0, color="0.5", lw=0.8)
+    ax = axes[1, 0]
+    kinds = (("robust-toy foot_radius", "tab:blue"), ("robust-toy com_offset[2]", "tab:orange"),
+             ("robust-toy slope", "tab:green"), ("clearing-toy", "tab:red"), ("grid", "0.4"),
+             ("fold", "tab:cyan"))
+    for prefix, colour in kinds:
+        sel = [r for r in rows if r["path"].startswith(prefix)]
+        for stable, marker in ((1, "o"), (0, ".")):
+            s = [r for r in sel if r["stable"] == stable]
+            ax.plot([r["kinetic_mgl"] for r in s], [r["best_dmin"] for r in s], marker, color=colour, ms=3,
+                    alpha=0.6, label=f"{prefix} ({'stable' if stable else 'unstable'})" if s else None)
+    for r in (r for r in rows if r["path"] == "shipped"):
+        ax.plot(r["kinetic_mgl"], r["best_dmin"], "k*", ms=10)
+        ax.annotate(r["walker"], (r["kinetic_mgl"], r["best_dmin"]), fontsize=7, xytext=(4, 2),
+                    textcoords="offset points")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("kinetic energy just after heel strike / (M g l)")
+    ax.set_ylabel("closest approach of the launches at 0.5-3 x lean (state units)")
+    ax.set_title("(c) every design: how far the gait starts from rest", fontsize=9)
+    ax.legend(fontsize=6, ncol=2)
+    ax = axes[1, 1]
+    g = [r for r in rows if r["path"] == "grid"]
+    if g:
+        stable = np.array([r["stable"] == 1 for r in g])
+        walked = np.array([min(r["steps_1.5"], r["steps_2.5"]) for r in g])
+        x = np.array([r["slope"] for r in g])
+        y = np.array([r["margin_mm"] for r in g])
+        ax.scatter(x[~stable], y[~stable], s=30, facecolors="none", edgecolors="0.5", label="unstable gait")
+        sc = ax.scatter(x[stable], y[stable], s=40, c=walked[stable], cmap="viridis", vmin=0, vmax=20,
+                        label="stable gait")
+        fig.colorbar(sc, ax=ax, label="steps walked from 1.5 and 2.5 x lean (the fewer)")
+        stands = np.array([r["can_stand"] == 1 for r in g])
+        ax.plot(x[stands], y[stands], "r+", ms=8, label="can stand")
+        fold = [r for r in rows if r["path"].startswith("fold") and r["stable"] == 1]
+        if fold:
+            ax.scatter([r["slope"] for r in fold], [r["margin_mm"] for r in fold], s=6,
+                       c=[min(r["steps_1.5"], r["steps_2.5"]) for r in fold], cmap="viridis", vmin=0, vmax=20,
+                       marker="s", label="stable, followed down in slope to the fold")
+        ax.set_xlabel("slope (rad)")
+        ax.set_ylabel("fore-aft margin (mm; robust-toy, foot radius 11.5-50 mm)")
+        ax.set_title("(d) margin x slope: stability and hand launch", fontsize=9)
+        ax.legend(fontsize=7, loc="upper right")
+    fig.tight_layout()
+    fig.savefig(HERE / "launch_margin.png", dpi=110)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--plot-only", action="store_true", help="redraw docs/launch_margin.png from the CSV")
+    parser.add_argument("--no-grid", action="store_true", help="skip the margin x slope grid")
+    args = parser.parse_args()
+    out = HERE / "launch_margin.csv"
+    if not args.plot_only:
+        t0 = time.perf_counter()
+        rows = shipped()
+        path_rows = {}
+        for walker_name, parameter, end in PATHS:
+            path_rows[(walker_name, parameter)] = follow_shipped(walker_name, parameter, end)
+            rows += path_rows[(walker_name, parameter)]
+        if not args.no_grid:
+            grid_rows = grid(path_rows[("robust-toy", "foot_radius")])
+            rows += grid_rows + to_fold(grid_rows)
+        with open(out, "w", newline="") as f:
+            writer = csv.DictWriter(f, fieldnames=COLUMNS)
+            writer.writeheader()
+            # seven digits for the measurements, twelve for the fixed point (a Newton start)
+            writer.writerows({k: _fmt(v, 12 if k[0] == "z" else 7) for k, v in r.items()} for r in rows)
+        best = headline(rows)
+        if best is None:
+            print(f"no stable design walks {HEADLINE_STEPS} steps from 1.5 and 2.5 x lean", flush=True)
+        else:
+            print(f"headline: {best}", flush=True)
+            write_best(best)
+        print(f"{len(rows)} designs, {time.perf_counter() - t0:.0f} s", flush=True)
+    plot(_read(out))
+
+
+if __name__ == "__main__":
+    main()
