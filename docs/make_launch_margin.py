@@ -371,8 +371,8 @@ def main() -> None:
         with open(out, "w", newline="") as f:
             writer = csv.DictWriter(f, fieldnames=COLUMNS)
             writer.writeheader()
-            # seven digits for the measurements, twelve for the fixed point (a Newton start)
-            writer.writerows({k: _fmt(v, 12 if k[0] == "z" else 7) for k, v in r.items()} for r in rows)
+            # five digits for the measurements, ten for the fixed point (a Newton start)
+            writer.writerows({k: _fmt(v, 10 if k[0] == "z" else 5) for k, v in r.items()} for r in rows)
         best = headline(rows)
         if best is None:
             print(f"no stable design walks {HEADLINE_STEPS} steps from 1.5 and 2.5 x lean", flush=True)
