@@ -21,7 +21,10 @@ fixed point, and the hand launch at 0.5-3 x the gait's lean amplitude as docs/ma
 walks and scores it (:func:`launch_walk`: steps walked, why it stopped, closest approach d_min to the
 fixed point in state_scale units, 150 steps at most). A grid of :data:`GRID` x :data:`GRID`
 designs, foot radius (so margin) against slope on robust-toy's r path, each gait followed in slope
-from the path by :func:`toywalk.model.gait.continue_gait`, gives the 2D picture. The shipped
+from the path by :func:`toywalk.model.gait.continue_gait`, gives the 2D picture; from each grid
+radius's slowest stable gait the branch is followed on down in slope to where it folds or loses
+stability (:func:`to_fold`), the slow end of the window, where the gait starts each step closest
+to rest. The shipped
 walkers with a stable gait (and paper-toy, whose gait is the real toy's, unstable) are measured
 the same way.
 
@@ -30,8 +33,8 @@ Outputs: docs/launch_margin.csv (one row a design: ``path`` names the path, ``gr
 and 2.5 x lean both walk :data:`HEADLINE_STEPS` steps, docs/launch_best.toml (the design that
 comes closest, its fixed point as ``[gait] start``).
 
-Run (2 cores shared with another job, compiled kernels cached: about 8 minutes, most of it
-``can_stand`` at 0.5 s a design)::
+Run (2 cores shared with another job, compiled kernels cached: 1015 s for 2424 designs, most of
+it ``can_stand`` at 0.5 s a design)::
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python docs/make_launch_margin.py
     OPENBLAS_NUM_THREADS=1 .venv/bin/python docs/make_launch_margin.py --plot-only
@@ -183,8 +186,9 @@ def to_fold(grid_rows: list[dict]) -> list[dict]:
 
 
 def _report(rows: list[dict]) -> None:
-    for r in rows[:: max(1, len(rows) // 12)] + rows[-1:]:
-        print(f"  {r['parameter']} {r['value']:.5g}: margin {r['margin_mm']:6.2f} mm, |lambda| "
+    shown = rows[:: max(1, len(rows) // 12)]
+    for r in shown + [q for q in rows[-1:] if q is not shown[-1]]:
+        print(f"  {r['walker']} {r['parameter']} {r['value']:.5g}: margin {r['margin_mm']:6.2f} mm, |lambda| "
               f"{r['max_abs_eigenvalue']:.3f}, clear {r['clearance_mm']:.2f} mm, stands {r['can_stand']}, "
               f"T {r['step_time']:.3f} s, stride {r['stride_mm']:.0f} mm, rate {r['stance_rate']:.2f} rad/s, "
               f"K/Mgl {r['kinetic_mgl']:.4f}; launch steps " + " ".join(
