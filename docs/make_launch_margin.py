@@ -52,7 +52,7 @@ from pathlib import Path
 
 import numpy as np
 from toywalk.model import GaitNotFound, Walker, can_stand, load_params, save_params, solve_fixed_point
-from toywalk.model.basin import LAUNCH_MULTIPLES, launch_state
+from toywalk.model.basin import LAUNCH_MULTIPLES, hand_launch, launch_state
 from toywalk.model.continuation import continue_branch
 from toywalk.model.gait import continue_gait, state_scale
 from toywalk.model.parameters import ParameterError
@@ -87,9 +87,13 @@ GRID_SLOPES = (0.01, 0.10)  # rad
 #: ``can_stand`` is checked on them.
 FOLD_END = 0.005  # rad
 FOLD_STAND = 10
+#: The hip-width paths from the slow end go down to this (m; robust-toy's hips are 94 mm apart).
+HIPS_END = 0.03
 #: A launch that walks this many steps at 1.5 and 2.5 x lean is the headline (issue 44's tips).
 HEADLINE_STEPS = 30
 HEADLINE_MULTIPLES = (1.5, 2.5)
+#: Tips (multiples of the lean amplitude) at which docs/launch_converging.toml's launch is checked.
+CONVERGING_TIPS = (0.5, 0.7, 0.8, 0.9, 1.0, 1.1, 1.2, 1.3, 1.5, 2.0, 2.5)
 COLUMNS = ["path", "walker", "parameter", "value", "foot_radius", "com_offset[2]", "slope", "margin_mm",
            "max_abs_eigenvalue", "stable", "clearance_mm", "can_stand", "step_time", "stride_mm", "lean_deg",
            "stance_rate", "stance_rate_scaled", "kinetic_mgl", "rest_distance",
@@ -196,6 +200,24 @@ def _report(rows: list[dict]) -> None:
               + f", d_min {r['best_dmin']:.3f}", flush=True)
 
 
+def narrow_hips(rows: list[dict]) -> list[dict]:
+    """From each slow-end path's design whose launch at 1.5 x lean walks furthest, the gait followed
+    in hip width down to :data:`HIPS_END` (narrower hips: its lean slower, the lateral rocking
+    that times the first step slower too), ``can_stand`` at every :data:`FOLD_STAND`-th point."""
+    out = []
+    for path in sorted({r["path"] for r in rows if str(r["path"]).startswith("fold")}):
+        stable = [r for r in rows if r["path"] == path and r["stable"] == 1]
+        if not stable:
+            continue
+        best = max(stable, key=lambda r: (r["steps_1.5"], -r["best_dmin"]))
+        params = load_params(ROOT / "data" / "params" / "robust-toy.toml")
+        p = params.replace(foot_radius=float(best["foot_radius"]), slope=float(best["slope"]))
+        z = np.array([float(best[f"z{i}"]) for i in range(8)])
+        out += follow(p, "hip_width", HIPS_END, z, "hips" + path[4:], "robust-toy", stand_every=FOLD_STAND,
+                      max_points=120)
+    return out
+
+
 def grid(rows_r: list[dict]) -> list[dict]:
     """:data:`GRID` foot radii on robust-toy's r path x :data:`GRID` slopes: each radius's gait
     from the nearest path point, then followed in slope each way from robust-toy's slope by
@@ -240,24 +262,76 @@ def shipped() -> list[dict]:
 
 def headline(rows: list[dict]) -> dict | None:
     """The design whose launches at :data:`HEADLINE_MULTIPLES` x lean both walk
-    :data:`HEADLINE_STEPS` steps with the closest approach, if any."""
-    good = [r for r in rows if r["path"] != "shipped" and r["stable"] == 1
+    :data:`HEADLINE_STEPS` steps, a stable one first, then the closest approach, if any."""
+    good = [r for r in rows if r["path"] != "shipped"
             and all(int(r[f"steps_{m:g}"]) >= HEADLINE_STEPS for m in HEADLINE_MULTIPLES)]
-    return min(good, key=lambda r: float(r["best_dmin"])) if good else None
+    return min(good, key=lambda r: (-r["stable"], float(r["best_dmin"]))) if good else None
 
 
-def write_best(row: dict) -> None:
+def write_csv(rows: list[dict]) -> None:
+    with open(HERE / "launch_margin.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=COLUMNS)
+        writer.writeheader()
+        # five digits for the measurements, ten for the fixed point (a Newton start)
+        writer.writerows({k: _fmt(v, 10 if k[0] == "z" else 5) for k, v in r.items()} for r in rows)
+
+
+def report_long(rows: list[dict]) -> None:
+    """Print how many designs have a launch that walks :data:`HEADLINE_STEPS` steps, and the
+    headline design, written to docs/launch_best.toml, if any."""
+    for m in HEADLINE_MULTIPLES:
+        long = [r for r in rows if int(r[f"steps_{m:g}"]) >= HEADLINE_STEPS]
+        print(f"launch at {m:g} x lean walks {HEADLINE_STEPS}+ steps: {len(long)} designs, "
+              f"{sum(r['stable'] == 1 for r in long)} of them stable", flush=True)
+    best = headline(rows)
+    if best is None:
+        print(f"no design walks {HEADLINE_STEPS} steps from both 1.5 and 2.5 x lean", flush=True)
+    else:
+        print(f"headline: {best}", flush=True)
+        write_best(best)
+    converging = [r for r in rows if r["path"] != "shipped"
+                  and any(r[f"reason_{m:g}"] == "recovered" for m in LAUNCH_MULTIPLES)]
+    print(f"a launch converges at some tip: {len(converging)} designs", flush=True)
+    if converging:
+        first = max(converging, key=lambda r: (r["clearance_mm"], -r["max_abs_eigenvalue"]))
+        write_best(first, HERE / "launch_converging.toml", check=CONVERGING_TIPS)
+
+
+def write_best(row: dict, path: Path = HERE / "launch_best.toml", check: tuple = ()) -> None:
+    """``row``'s design to ``path``, its fixed point as ``[gait] start``; with ``check`` (multiples of
+    the lean amplitude), :func:`hand_launch` at those tips and headings 0, +-1 and 2 degrees (400
+    steps) says in the header where it converges."""
     params = load_params(ROOT / "data" / "params" / f"{row['walker']}.toml")
-    params = params.replace(foot_radius=float(row["foot_radius"]), slope=float(row["slope"]),
-                            **{"com_offset[2]": float(row["com_offset[2]"])})
-    z = tuple(float(row[f"z{i}"]) for i in range(8))
-    save_params(dataclasses.replace(params, gait_start=z), HERE / "launch_best.toml",
-                header=f"A walker launched by hand from docs/make_launch_margin.py ({row['path']}): "
-                       f"fore-aft margin {float(row['margin_mm']):.2f} mm, max |eigenvalue| "
-                       f"{float(row['max_abs_eigenvalue']):.3f}, clearance "
-                       f"{float(row['clearance_mm']):.2f} mm, can_stand {row['can_stand']};\nhand launch "
-                       f"steps at 1.5 / 2.5 x lean {row['steps_1.5']} / {row['steps_2.5']} "
-                       f"({row['reason_1.5']} / {row['reason_2.5']}). [gait] start is its fixed point.")
+    changes = {"foot_radius": float(row["foot_radius"]), "slope": float(row["slope"]),
+               "com_offset[2]": float(row["com_offset[2]"])}
+    if str(row["path"]).startswith("hips"):
+        changes["hip_width"] = float(row["value"])
+    params = params.replace(**changes)
+    gait = solve_fixed_point(Walker(params), np.array([float(row[f"z{i}"]) for i in range(8)]))
+    note = ""
+    if check:
+        headings = (0.0, math.radians(1), -math.radians(1), math.radians(2))
+        launch = hand_launch(params, [m * gait.lean_amplitude for m in check], headings=headings, gait=gait,
+                             steps=400)
+        lines = []
+        for heading, ok in zip(headings, launch.recovered(), strict=True):
+            tips = " ".join(f"{m:g}" for m, k in zip(check, ok, strict=True) if k) or "none"
+            lines.append(f"heading {math.degrees(heading):+.0f} deg: {tips}")
+        note = (f"\nhand_launch (400 steps, tips {min(check):g}-{max(check):g} x lean) converges at "
+                + "; ".join(lines) + f" x lean ({math.degrees(gait.lean_amplitude):.3f} deg).")
+        print(f"{path.name}:{note}", flush=True)
+    if path.name == "launch_converging.toml":
+        title = ("The first design of docs/make_launch_margin.py whose hand launch converges to its gait "
+                 f"({row['path']},\nhip width {1e3 * params.hip_width:.1f} mm)")
+    else:
+        title = f"A walker launched by hand from docs/make_launch_margin.py ({row['path']})"
+    header = (f"{title}: fore-aft margin {1e3 * fore_aft_margin(params):.2f} mm, max |eigenvalue| "
+              f"{gait.max_abs_eigenvalue:.3f},\nclearance {1e3 * gait.clearance:.2f} mm, can_stand "
+              f"{can_stand(params).can_stand}; launch steps at 1.5 / 2.5 x lean {int(row['steps_1.5'])} / "
+              f"{int(row['steps_2.5'])} ({row['reason_1.5']} / {row['reason_2.5']}).{note}\n"
+              "[gait] start is its fixed point.")
+    save_params(dataclasses.replace(params, gait_start=tuple(float(v) for v in gait.fixed_point)), path,
+                header=header)
 
 
 def _fmt(v, digits: int = 7):
@@ -313,7 +387,7 @@ def plot(rows: list[dict]) -> None:
     ax = axes[1, 0]
     kinds = (("robust-toy foot_radius", "tab:blue"), ("robust-toy com_offset[2]", "tab:orange"),
              ("robust-toy slope", "tab:green"), ("clearing-toy", "tab:red"), ("grid", "0.4"),
-             ("fold", "tab:cyan"))
+             ("fold", "tab:cyan"), ("hips", "tab:pink"))
     for prefix, colour in kinds:
         sel = [r for r in rows if r["path"].startswith(prefix)]
         for stable, marker in ((1, "o"), (0, ".")):
@@ -360,9 +434,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--plot-only", action="store_true", help="redraw docs/launch_margin.png from the CSV")
     parser.add_argument("--no-grid", action="store_true", help="skip the margin x slope grid")
+    parser.add_argument("--hips-only", action="store_true",
+                        help="only the hip-width paths, from the slow-end paths in the CSV (rows replaced)")
     args = parser.parse_args()
     out = HERE / "launch_margin.csv"
-    if not args.plot_only:
+    if not (args.plot_only or args.hips_only):
         t0 = time.perf_counter()
         rows = shipped()
         path_rows = {}
@@ -371,18 +447,17 @@ def main() -> None:
             rows += path_rows[(walker_name, parameter)]
         if not args.no_grid:
             grid_rows = grid(path_rows[("robust-toy", "foot_radius")])
-            rows += grid_rows + to_fold(grid_rows)
-        with open(out, "w", newline="") as f:
-            writer = csv.DictWriter(f, fieldnames=COLUMNS)
-            writer.writeheader()
-            # five digits for the measurements, ten for the fixed point (a Newton start)
-            writer.writerows({k: _fmt(v, 10 if k[0] == "z" else 5) for k, v in r.items()} for r in rows)
-        best = headline(rows)
-        if best is None:
-            print(f"no stable design walks {HEADLINE_STEPS} steps from 1.5 and 2.5 x lean", flush=True)
-        else:
-            print(f"headline: {best}", flush=True)
-            write_best(best)
+            fold_rows = to_fold(grid_rows)
+            rows += grid_rows + fold_rows + narrow_hips(fold_rows)
+        write_csv(rows)
+        report_long(rows)
+        print(f"{len(rows)} designs, {time.perf_counter() - t0:.0f} s", flush=True)
+    elif args.hips_only:
+        t0 = time.perf_counter()
+        rows = [r for r in _read(out) if not str(r["path"]).startswith("hips")]
+        rows += narrow_hips(rows)
+        write_csv(rows)
+        report_long(rows)
         print(f"{len(rows)} designs, {time.perf_counter() - t0:.0f} s", flush=True)
     plot(_read(out))
 
