@@ -24,19 +24,23 @@ designs, foot radius (so margin) against slope on robust-toy's r path, each gait
 from the path by :func:`toywalk.model.gait.continue_gait`, gives the 2D picture; from each grid
 radius's slowest stable gait the branch is followed on down in slope to where it folds or loses
 stability (:func:`to_fold`), the slow end of the window, where the gait starts each step closest
-to rest. The shipped
+to rest; and from each of those paths' design whose launch at 1.5 x lean walks furthest, the gait
+is followed in hip width down to 30 mm (:func:`narrow_hips`). The shipped
 walkers with a stable gait (and paper-toy, whose gait is the real toy's, unstable) are measured
 the same way.
 
 Outputs: docs/launch_margin.csv (one row a design: ``path`` names the path, ``grid`` the grid,
-``shipped`` the shipped walkers), docs/launch_margin.png, and, if any design's launches at 1.5
-and 2.5 x lean both walk :data:`HEADLINE_STEPS` steps, docs/launch_best.toml (the design that
-comes closest, its fixed point as ``[gait] start``).
+``fold r ...`` and ``hips r ...`` the slope and hip-width paths, ``shipped`` the shipped walkers;
+1.5 MB), docs/launch_margin.png; if any design's launches at 1.5 and 2.5 x lean both walk
+:data:`HEADLINE_STEPS` steps, docs/launch_best.toml (the design that comes closest, its fixed
+point as ``[gait] start``); if any design's launch converges at some tip, docs/launch_converging.toml
+(the one with the most clearance, checked by :func:`hand_launch` over tips and headings).
 
-Run (2 cores shared with another job, compiled kernels cached: 1015 s for 2424 designs, most of
-it ``can_stand`` at 0.5 s a design)::
+Run (2 cores shared with another job, compiled kernels cached: about 20 minutes for 3912 designs,
+most of it ``can_stand`` at 0.5 s a design; the hip-width paths alone, from the CSV, 160 s)::
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python docs/make_launch_margin.py
+    OPENBLAS_NUM_THREADS=1 .venv/bin/python docs/make_launch_margin.py --hips-only
     OPENBLAS_NUM_THREADS=1 .venv/bin/python docs/make_launch_margin.py --plot-only
 """
 
@@ -403,7 +407,7 @@ def plot(rows: list[dict]) -> None:
     ax.set_xlabel("kinetic energy just after heel strike / (M g l)")
     ax.set_ylabel("closest approach of the launches at 0.5-3 x lean (state units)")
     ax.set_title("(c) every design: how far the gait starts from rest", fontsize=9)
-    ax.legend(fontsize=6, ncol=2)
+    ax.legend(fontsize=6, ncol=2, loc="lower right")
     ax = axes[1, 1]
     g = [r for r in rows if r["path"] == "grid"]
     if g:
