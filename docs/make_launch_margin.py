@@ -98,6 +98,8 @@ HEADLINE_STEPS = 30
 HEADLINE_MULTIPLES = (1.5, 2.5)
 #: Tips (multiples of the lean amplitude) at which docs/launch_converging.toml's launch is checked.
 CONVERGING_TIPS = (0.5, 0.7, 0.8, 0.9, 1.0, 1.1, 1.2, 1.3, 1.5, 2.0, 2.5)
+#: How far up in slope docs/launch_converging.toml is followed (rad).
+WINDOW_SLOPE = 0.03
 COLUMNS = ["path", "walker", "parameter", "value", "foot_radius", "com_offset[2]", "slope", "margin_mm",
            "max_abs_eigenvalue", "stable", "clearance_mm", "can_stand", "step_time", "stride_mm", "lean_deg",
            "stance_rate", "stance_rate_scaled", "kinetic_mgl", "rest_distance",
@@ -434,14 +436,56 @@ def plot(rows: list[dict]) -> None:
     fig.savefig(HERE / "launch_margin.png", dpi=110)
 
 
+def converging_window() -> None:
+    """docs/launch_converging.toml followed in slope (up to :data:`WINDOW_SLOPE`) and in hip width
+    (both ways) by :func:`continue_branch`; at every branch point :func:`hand_launch` at
+    :data:`CONVERGING_TIPS` x lean, heading 0, 400 steps: which tips converge. Written to
+    docs/launch_converging.csv (one row a design)."""
+    params = load_params(HERE / "launch_converging.toml")
+    z = np.array(params.gait_start)
+    rows = []
+    for name, end in (("slope", WINDOW_SLOPE), ("hip_width", 0.03), ("hip_width", 0.094)):
+        branch = continue_branch(params, name, params.get(name), end, max_points=120, ds=0.005, ds_max=DS_MAX,
+                                 z_start=z, planar=False)
+        print(f"launch_converging.toml, {name} to {end:g}: {len(branch.points)} points, {branch.status}",
+              flush=True)
+        done = []
+        for point in branch.points:
+            p = params.replace(**{name: point.value})
+            try:
+                gait = solve_fixed_point(Walker(p), point.fixed_point)
+            except GaitNotFound:
+                continue
+            launch = hand_launch(p, [m * gait.lean_amplitude for m in CONVERGING_TIPS], gait=gait, steps=400)
+            ok = launch.recovered()[0]
+            tips = " ".join(f"{m:g}" for m, k in zip(CONVERGING_TIPS, ok, strict=True) if k)
+            done.append({"parameter": name, "value": point.value,
+                         "max_abs_eigenvalue": gait.max_abs_eigenvalue, "clearance_mm": 1e3 * gait.clearance,
+                         "lean_deg": math.degrees(gait.lean_amplitude), "converges_at": tips,
+                         "steps": " ".join(str(r.steps) for r in launch.results[0])})
+        rows += done
+        for r in done[:: max(1, len(done) // 10)] + done[-1:]:
+            print(f"  {r['parameter']} {r['value']:.6g}: |lambda| {r['max_abs_eigenvalue']:.4f}, clear "
+                  f"{r['clearance_mm']:.2f} mm, converges at {r['converges_at'] or '-'} x lean", flush=True)
+    with open(HERE / "launch_converging.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows({k: _fmt(v, 6) for k, v in r.items()} for r in rows)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--plot-only", action="store_true", help="redraw docs/launch_margin.png from the CSV")
     parser.add_argument("--no-grid", action="store_true", help="skip the margin x slope grid")
+    parser.add_argument("--window", action="store_true",
+                        help="only the windows of docs/launch_converging.toml (docs/launch_converging.csv)")
     parser.add_argument("--hips-only", action="store_true",
                         help="only the hip-width paths, from the slow-end paths in the CSV (rows replaced)")
     args = parser.parse_args()
     out = HERE / "launch_margin.csv"
+    if args.window:
+        converging_window()
+        return
     if not (args.plot_only or args.hips_only):
         t0 = time.perf_counter()
         rows = shipped()
