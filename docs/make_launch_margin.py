@@ -495,8 +495,11 @@ def main() -> None:
             rows += path_rows[(walker_name, parameter)]
         if not args.no_grid:
             grid_rows = grid(path_rows[("robust-toy", "foot_radius")])
-            fold_rows = to_fold(grid_rows)
-            rows += grid_rows + fold_rows + narrow_hips(fold_rows)
+            rows += grid_rows + to_fold(grid_rows)
+        write_csv(rows)
+        # the hip-width paths start from the written rows, as --hips-only does, so that the two agree
+        rows = _read(out)
+        rows += narrow_hips(rows)
         write_csv(rows)
         report_long(rows)
         print(f"{len(rows)} designs, {time.perf_counter() - t0:.0f} s", flush=True)
