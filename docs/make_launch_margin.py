@@ -34,13 +34,17 @@ Outputs: docs/launch_margin.csv (one row a design: ``path`` names the path, ``gr
 1.5 MB), docs/launch_margin.png; if any design's launches at 1.5 and 2.5 x lean both walk
 :data:`HEADLINE_STEPS` steps, docs/launch_best.toml (the design that comes closest, its fixed
 point as ``[gait] start``); if any design's launch converges at some tip, docs/launch_converging.toml
-(the one with the most clearance, checked by :func:`hand_launch` over tips and headings).
+(the one with the most clearance, checked by :func:`hand_launch` over tips and headings), and
+with ``--window`` that design followed in slope and hip width, the tips that converge at each
+point (:func:`converging_window`, docs/launch_converging.csv).
 
 Run (2 cores shared with another job, compiled kernels cached: about 20 minutes for 3912 designs,
-most of it ``can_stand`` at 0.5 s a design; the hip-width paths alone, from the CSV, 160 s)::
+most of it ``can_stand`` at 0.5 s a design; the hip-width paths alone, from the CSV, 160 s; the
+windows 80 s)::
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python docs/make_launch_margin.py
     OPENBLAS_NUM_THREADS=1 .venv/bin/python docs/make_launch_margin.py --hips-only
+    OPENBLAS_NUM_THREADS=1 .venv/bin/python docs/make_launch_margin.py --window
     OPENBLAS_NUM_THREADS=1 .venv/bin/python docs/make_launch_margin.py --plot-only
 """
 
