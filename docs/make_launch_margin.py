@@ -38,7 +38,7 @@ point as ``[gait] start``); if any design's launch converges at some tip, docs/l
 with ``--window`` that design followed in slope and hip width, the tips that converge at each
 point (:func:`converging_window`, docs/launch_converging.csv).
 
-Run (2 cores shared with another job, compiled kernels cached: about 20 minutes for 3912 designs,
+Run (2 cores shared with another job, compiled kernels cached: 1361 s for 3912 designs,
 most of it ``can_stand`` at 0.5 s a design; the hip-width paths alone, from the CSV, 160 s; the
 windows 80 s)::
 
