@@ -4,8 +4,8 @@ Section 7 found no walker that walks into its gait from a hand launch, and blame
 margin h - r (the centre of mass above the feet's fore-aft centre of curvature): with a positive
 one the walker at rest falls forward, the first step comes too early for the swing leg, and every
 stable gait found had a margin of 15-46 mm. This script follows the stable gaits of
-data/params/robust-toy.toml and data/params/clearing-toy.toml towards a smaller margin by
-pseudo-arclength continuation (:func:`toywalk.model.continuation.continue_branch`, Newton from the
+docs/robust_best.toml (the rigid design search's best, docs/gaits.md section 7) and
+data/params/clearing-toy.toml towards a smaller margin by pseudo-arclength continuation (:func:`toywalk.model.continuation.continue_branch`, Newton from the
 previous fixed point, folds and stability changes reported) in
 
 - ``foot_radius`` r (raised; the box of docs/make_clearance_design.py ends at 30 mm, the paths go
@@ -20,7 +20,7 @@ and the walker's kinetic energy there (over M g l), the distance of a launch fro
 fixed point, and the hand launch at 0.5-3 x the gait's lean amplitude as docs/make_robust_design.py
 walks and scores it (:func:`launch_walk`: steps walked, why it stopped, closest approach d_min to the
 fixed point in state_scale units, 150 steps at most). A grid of :data:`GRID` x :data:`GRID`
-designs, foot radius (so margin) against slope on robust-toy's r path, each gait followed in slope
+designs, foot radius (so margin) against slope on robust_best's r path, each gait followed in slope
 from the path by :func:`toywalk.model.gait.continue_gait`, gives the 2D picture; from each grid
 radius's slowest stable gait the branch is followed on down in slope to where it folds or loses
 stability (:func:`to_fold`), the slow end of the window, where the gait starts each step closest
@@ -74,9 +74,9 @@ HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 #: (walker, continued parameter, end value): the paths from the two shipped feasible walkers.
 PATHS = (
-    ("robust-toy", "foot_radius", 0.06),
-    ("robust-toy", "com_offset[2]", -0.148),
-    ("robust-toy", "slope", 0.01),
+    ("robust_best", "foot_radius", 0.06),
+    ("robust_best", "com_offset[2]", -0.148),
+    ("robust_best", "slope", 0.01),
     ("clearing-toy", "foot_radius", 0.06),
     ("clearing-toy", "com_offset[2]", -0.148),
     ("clearing-toy", "slope", 0.01),
@@ -86,16 +86,16 @@ PATHS = (
 #: in all eleven parameters at once) kept losing.
 DS_MAX = 0.02
 #: Shipped walkers measured for comparison: (file, its gait is stable).
-SHIPPED = ("robust-toy", "clearing-toy", "stable-toy", "paper-toy")
-#: The grid: GRID foot radii along robust-toy's r path x GRID slopes.
+SHIPPED = ("robust_best", "clearing-toy", "stable-toy", "paper-toy")
+#: The grid: GRID foot radii along robust_best's r path x GRID slopes.
 GRID = 15
-GRID_RADII = (0.0114591, 0.05)  # m: robust-toy's own to a margin of about -7 mm
+GRID_RADII = (0.0114591, 0.05)  # m: robust_best's own to a margin of about -7 mm
 GRID_SLOPES = (0.01, 0.10)  # rad
 #: The slope paths from the grid's slowest stable gaits: how low they are followed, and how often
 #: ``can_stand`` is checked on them.
 FOLD_END = 0.005  # rad
 FOLD_STAND = 10
-#: The hip-width paths from the slow end go down to this (m; robust-toy's hips are 94 mm apart).
+#: The hip-width paths from the slow end go down to this (m; robust_best's hips are 94 mm apart).
 HIPS_END = 0.03
 #: A launch that walks this many steps at 1.5 and 2.5 x lean is the headline (issue 44's tips).
 HEADLINE_STEPS = 30
@@ -109,6 +109,11 @@ COLUMNS = ["path", "walker", "parameter", "value", "foot_radius", "com_offset[2]
            "stance_rate", "stance_rate_scaled", "kinetic_mgl", "rest_distance",
            *(f"{k}_{m:g}" for m in LAUNCH_MULTIPLES for k in ("steps", "reason", "dmin")),
            "best_dmin", *(f"z{i}" for i in range(8))]
+
+
+def walker_path(name: str) -> Path:
+    """A walker's parameter file by name: docs/robust_best.toml, or data/params/NAME.toml."""
+    return HERE / "robust_best.toml" if name == "robust_best" else ROOT / "data" / "params" / f"{name}.toml"
 
 
 def kinetic_energy(walker: Walker, z: np.ndarray) -> float:
@@ -174,7 +179,7 @@ def follow(params, parameter: str, end: float, z_start: np.ndarray, path: str, w
 
 def follow_shipped(walker_name: str, parameter: str, end: float) -> list[dict]:
     """A path of :data:`PATHS`: from the shipped walker's gait (its ``[gait] start``)."""
-    params = load_params(ROOT / "data" / "params" / f"{walker_name}.toml")
+    params = load_params(walker_path(walker_name))
     return follow(params, parameter, end, np.array(params.gait_start), f"{walker_name} {parameter}",
                   walker_name)
 
@@ -185,7 +190,7 @@ def to_fold(grid_rows: list[dict]) -> list[dict]:
     where the gait starts each step closest to rest. ``can_stand`` at every :data:`FOLD_STAND`-th
     point (on every path above it changes exactly where the fore-aft margin crosses 0, which the
     slope does not move)."""
-    params = load_params(ROOT / "data" / "params" / "robust-toy.toml")
+    params = load_params(walker_path("robust_best"))
     rows = []
     for r in sorted({q["value"] for q in grid_rows}):
         stable = [q for q in grid_rows if q["value"] == r and q["stable"] == 1]
@@ -194,7 +199,7 @@ def to_fold(grid_rows: list[dict]) -> list[dict]:
         low = min(stable, key=lambda q: q["slope"])
         p = params.replace(foot_radius=float(r), slope=float(low["slope"]))
         z = np.array([low[f"z{i}"] for i in range(8)])
-        rows += follow(p, "slope", FOLD_END, z, f"fold r {1e3 * r:.1f} mm", "robust-toy",
+        rows += follow(p, "slope", FOLD_END, z, f"fold r {1e3 * r:.1f} mm", "robust_best",
                        stand_every=FOLD_STAND, max_points=150)
     return rows
 
@@ -220,19 +225,19 @@ def narrow_hips(rows: list[dict]) -> list[dict]:
         if not stable:
             continue
         best = max(stable, key=lambda r: (r["steps_1.5"], -r["best_dmin"]))
-        params = load_params(ROOT / "data" / "params" / "robust-toy.toml")
+        params = load_params(walker_path("robust_best"))
         p = params.replace(foot_radius=float(best["foot_radius"]), slope=float(best["slope"]))
         z = np.array([float(best[f"z{i}"]) for i in range(8)])
-        out += follow(p, "hip_width", HIPS_END, z, "hips" + path[4:], "robust-toy", stand_every=FOLD_STAND,
+        out += follow(p, "hip_width", HIPS_END, z, "hips" + path[4:], "robust_best", stand_every=FOLD_STAND,
                       max_points=120)
     return out
 
 
 def grid(rows_r: list[dict]) -> list[dict]:
-    """:data:`GRID` foot radii on robust-toy's r path x :data:`GRID` slopes: each radius's gait
-    from the nearest path point, then followed in slope each way from robust-toy's slope by
+    """:data:`GRID` foot radii on robust_best's r path x :data:`GRID` slopes: each radius's gait
+    from the nearest path point, then followed in slope each way from robust_best's slope by
     :func:`continue_gait`; a slope past where the gait is lost gets no row."""
-    params = load_params(ROOT / "data" / "params" / "robust-toy.toml")
+    params = load_params(walker_path("robust_best"))
     radii = np.linspace(*GRID_RADII, GRID)
     slopes = np.linspace(*GRID_SLOPES, GRID)
     out = []
@@ -253,7 +258,7 @@ def grid(rows_r: list[dict]) -> list[dict]:
                 except (GaitNotFound, ParameterError):
                     break
                 p = target
-                out.append(measure(p, gait, "grid", "robust-toy", "foot_radius slope", float(r)))
+                out.append(measure(p, gait, "grid", "robust_best", "foot_radius slope", float(r)))
         print(f"grid r = {1e3 * r:.1f} mm: {sum(q['value'] == r for q in out)} slopes with a gait, "
               f"{time.perf_counter() - t0:.0f} s", flush=True)
     return out
@@ -262,7 +267,7 @@ def grid(rows_r: list[dict]) -> list[dict]:
 def shipped() -> list[dict]:
     rows = []
     for name in SHIPPED:
-        params = load_params(ROOT / "data" / "params" / f"{name}.toml")
+        params = load_params(walker_path(name))
         start = params.gait_start if params.gait_start is not None else Z_STABLE  # stable-toy's has none
         gait = solve_fixed_point(Walker(params), np.array(start))
         rows.append(measure(params, gait, "shipped", name, "", math.nan))
@@ -311,7 +316,7 @@ def write_best(row: dict, path: Path = HERE / "launch_best.toml", check: tuple =
     """``row``'s design to ``path``, its fixed point as ``[gait] start``; with ``check`` (multiples of
     the lean amplitude), :func:`hand_launch` at those tips and headings 0, +-1 and 2 degrees (400
     steps) says in the header where it converges."""
-    params = load_params(ROOT / "data" / "params" / f"{row['walker']}.toml")
+    params = load_params(walker_path(row['walker']))
     changes = {"foot_radius": float(row["foot_radius"]), "slope": float(row["slope"]),
                "com_offset[2]": float(row["com_offset[2]"])}
     if str(row["path"]).startswith("hips"):
@@ -370,7 +375,7 @@ def plot(rows: list[dict]) -> None:
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(2, 2, figsize=(12, 9))
-    colours = {"robust-toy foot_radius": "tab:blue", "robust-toy com_offset[2]": "tab:orange",
+    colours = {"robust_best foot_radius": "tab:blue", "robust_best com_offset[2]": "tab:orange",
                "clearing-toy foot_radius": "tab:red", "clearing-toy com_offset[2]": "tab:purple"}
     for path, colour in colours.items():
         sel = [r for r in rows if r["path"] == path]
@@ -395,8 +400,8 @@ def plot(rows: list[dict]) -> None:
     ax.set_title("(b) the same paths: hand launches", fontsize=9)
     ax.axvline(0, color="0.5", lw=0.8)
     ax = axes[1, 0]
-    kinds = (("robust-toy foot_radius", "tab:blue"), ("robust-toy com_offset[2]", "tab:orange"),
-             ("robust-toy slope", "tab:green"), ("clearing-toy", "tab:red"), ("grid", "0.4"),
+    kinds = (("robust_best foot_radius", "tab:blue"), ("robust_best com_offset[2]", "tab:orange"),
+             ("robust_best slope", "tab:green"), ("clearing-toy", "tab:red"), ("grid", "0.4"),
              ("fold", "tab:cyan"), ("hips", "tab:pink"))
     for prefix, colour in kinds:
         sel = [r for r in rows if r["path"].startswith(prefix)]
@@ -433,7 +438,7 @@ def plot(rows: list[dict]) -> None:
                        c=[min(r["steps_1.5"], r["steps_2.5"]) for r in fold], cmap="viridis", vmin=0, vmax=20,
                        marker="s", label="stable, followed down in slope to the fold")
         ax.set_xlabel("slope (rad)")
-        ax.set_ylabel("fore-aft margin (mm; robust-toy, foot radius 11.5-50 mm)")
+        ax.set_ylabel("fore-aft margin (mm; robust_best, foot radius 11.5-50 mm)")
         ax.set_title("(d) margin x slope: stability and hand launch", fontsize=9)
         ax.legend(fontsize=7, loc="upper right")
     fig.tight_layout()
@@ -498,7 +503,7 @@ def main() -> None:
             path_rows[(walker_name, parameter)] = follow_shipped(walker_name, parameter, end)
             rows += path_rows[(walker_name, parameter)]
         if not args.no_grid:
-            grid_rows = grid(path_rows[("robust-toy", "foot_radius")])
+            grid_rows = grid(path_rows[("robust_best", "foot_radius")])
             rows += grid_rows + to_fold(grid_rows)
         write_csv(rows)
         # the hip-width paths start from the written rows, as --hips-only does, so that the two agree
