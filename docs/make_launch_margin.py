@@ -5,8 +5,9 @@ margin h - r (the centre of mass above the feet's fore-aft centre of curvature):
 one the walker at rest falls forward, the first step comes too early for the swing leg, and every
 stable gait found had a margin of 15-46 mm. This script follows the stable gaits of
 docs/robust_best.toml (the rigid design search's best, docs/gaits.md section 7) and
-data/params/clearing-toy.toml towards a smaller margin by pseudo-arclength continuation (:func:`toywalk.model.continuation.continue_branch`, Newton from the
-previous fixed point, folds and stability changes reported) in
+data/params/clearing-toy.toml towards a smaller margin by pseudo-arclength continuation
+(:func:`toywalk.model.continuation.continue_branch`, Newton from the previous fixed point, folds
+and stability changes reported) in
 
 - ``foot_radius`` r (raised; the box of docs/make_clearance_design.py ends at 30 mm, the paths go
   on to 60 mm, past a zero margin),
