@@ -11,8 +11,8 @@ the rigid strike (tau = 0) to 4 ms, then solved by Newton at tau = 0, 0.25, 0.5,
 from the nearest branch point. For each: the step map's eigenvalues, the step time and the lean
 amplitude; at 1 ms and 4 ms also the largest eigenvalue with the phase integrated at twice the
 steps (the integrator's share of the numbers: check it on another walker, where the default 20
-steps per tau can be far from converged, docs/gaits.md section 7). Then the slope at which the gait loses stability,
-rigid and at tau = 1, 2 and 4 ms (continuation in ``slope`` up to ``--slope-to``). Prints Markdown
+steps per tau can be far from converged, docs/gaits.md section 7). Then the slope at which the
+gait loses stability, rigid and at tau = 1, 2 and 4 ms (continuation in ``slope`` up to ``--slope-to``). Prints Markdown
 tables and writes docs/soft_heel.png and docs/soft_heel.csv; with ``--params P.toml``,
 docs/soft_heel_P.png and docs/soft_heel_P.csv.
 """
