@@ -13,8 +13,8 @@ amplitude; at 1 ms and 4 ms also the largest eigenvalue with the phase integrate
 steps (the integrator's share of the numbers: check it on another walker, where the default 20
 steps per tau can be far from converged, docs/gaits.md section 7). Then the slope at which the
 gait loses stability, rigid and at tau = 1, 2 and 4 ms (continuation in ``slope`` up to
-``--slope-to``). Prints Markdown tables and writes docs/soft_heel.png and docs/soft_heel.csv; with ``--params P.toml``,
-docs/soft_heel_P.png and docs/soft_heel_P.csv.
+``--slope-to``). Prints Markdown tables and writes docs/soft_heel.png and docs/soft_heel.csv;
+with ``--params P.toml``, docs/soft_heel_P.png and docs/soft_heel_P.csv.
 """
 
 from __future__ import annotations
