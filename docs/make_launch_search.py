@@ -29,7 +29,10 @@ docs/launch_converging.toml (the first walker whose hand launch converges into i
   at 30 mm; docs/launch_converging.toml has 39 mm).
 
 Every design goes to ``--log`` (docs/launch_search.csv; parameters, gait, launches, score, the
-fixed point). Then ``--finalists N``: the N best designs that cannot stand, re-solved and measured
+fixed point) but those ``Params`` refuses (an inertia whose principal moments break the triangle
+inequality, a lateral foot radius above the fore-aft one: half the designs of the run in
+docs/launch_search_draft.md, which are only counted, to keep the log under 2 MB).
+Then ``--finalists N``: the N best designs that cannot stand, re-solved and measured
 with :func:`hand_launch` at 0.5-3 x lean (400 steps), the clearance, ``can_stand``, and in MuJoCo
 (:func:`walk_in_mujoco`): the launches at 1.5 and 2.5 x lean (100 steps) at the contact settings of
 :data:`MUJOCO_SETTINGS`, and the kicks of docs/make_basin.py (each of the four rates kicked by
@@ -109,6 +112,7 @@ class Search:
         self.archive: list[dict] = []
         self.best: dict | None = None
         self.n = 0
+        self.rejected = 0  # designs that Params refuses (not logged, to keep the log small)
         self.file = open(log, "w", newline="")  # noqa: SIM115 -- closed by close()
         self.writer = csv.DictWriter(self.file, fieldnames=COLUMNS)
         self.writer.writeheader()
@@ -153,7 +157,10 @@ class Search:
                     if not stands:
                         self.best = row
                 self.archive.append({**row, "x": np.array(x, dtype=float), "z": gait.fixed_point})
-        self.writer.writerow({k: _fmt(v, 10 if k[0] == "z" else 6) for k, v in row.items()})
+        if row["why"] == "parameters":
+            self.rejected += 1
+        else:
+            self.writer.writerow({k: _fmt(v, 10 if k[0] == "z" else 6) for k, v in row.items()})
         return row
 
     def child(self) -> tuple[np.ndarray, np.ndarray, int, float]:
@@ -307,7 +314,7 @@ def main() -> None:
             walk(search, args.minutes)
         finally:
             search.close()
-        reasons: dict[str, int] = {}
+        reasons = {"parameters (not logged)": search.rejected}
         for r in _read(args.log):
             reasons[r["why"] or "stable"] = reasons.get(r["why"] or "stable", 0) + 1
         print(f"{search.n} designs: {reasons}; best {search.best}", flush=True)
