@@ -184,7 +184,8 @@ def walk(search: Search, minutes: float) -> None:
         x, z, parent, sigma = search.child()
         row = search.evaluate(x, z, parent, sigma)
         if row is search.best:
-            print(f"{search.n:5d} new best {row['score']:.4f}: steps {row['steps_1.5']} / {row['steps_2.5']} "
+            print(f"{row['design']:5d} new best {row['score']:.4f}: "
+                  f"steps {row['steps_1.5']} / {row['steps_2.5']} "
                   f"({row['reason_1.5']} / {row['reason_2.5']}), |lambda| {row['max_abs_eigenvalue']:.4f}, "
                   f"clear {row['clearance_mm']:.2f} mm, sigma {sigma:.4f}, "
                   f"{time.perf_counter() - t0:.0f} s", flush=True)
