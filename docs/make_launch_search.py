@@ -31,7 +31,7 @@ docs/launch_converging.toml (the first walker whose hand launch converges into i
 Every design goes to ``--log`` (docs/launch_search.csv; parameters, gait, launches, score, the
 fixed point) but those ``Params`` refuses (an inertia whose principal moments break the triangle
 inequality, a lateral foot radius above the fore-aft one: half the designs of the run in
-docs/launch_search_draft.md, which are only counted, to keep the log under 2 MB).
+docs/gaits.md section 7, which are only counted, to keep the log under 2 MB).
 Then ``--finalists N``: the N best designs that cannot stand, re-solved and measured
 with :func:`hand_launch` at 0.5-3 x lean (400 steps), the clearance, ``can_stand``, and in MuJoCo
 (:func:`walk_in_mujoco`): the launches at 1.5 and 2.5 x lean (100 steps) at the contact settings of
