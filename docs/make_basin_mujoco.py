@@ -60,6 +60,7 @@ from __future__ import annotations
 import argparse
 import csv
 import math
+import sys
 import time
 from pathlib import Path
 
@@ -69,6 +70,9 @@ from toywalk.model.basin import hand_launch, launch_state, perturbed, random_dir
 from toywalk.model.gait import state_scale
 from toywalk.model.mujoco_check import walk_in_mujoco
 from toywalk.model.walker import StepFailure
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from make_basin import _write  # noqa: E402  (the same CSV writer as the model's basin tables)
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
@@ -296,13 +300,6 @@ def plot_curves() -> None:
     fig.tight_layout()
     fig.savefig(HERE / "basin_mujoco_curves.png", dpi=110)
     print("wrote docs/basin_mujoco_curves.png")
-
-
-def _write(path: Path, rows: list[dict]) -> None:
-    with open(path, "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
 
 
 def main() -> None:

@@ -289,7 +289,7 @@ def write_csv(rows: list[dict]) -> None:
         writer = csv.DictWriter(f, fieldnames=COLUMNS)
         writer.writeheader()
         # five digits for the measurements, ten for the fixed point (a Newton start)
-        writer.writerows({k: _fmt(v, 10 if k[0] == "z" else 5) for k, v in r.items()} for r in rows)
+        writer.writerows({k: fmt_cell(v, 10 if k[0] == "z" else 5) for k, v in r.items()} for r in rows)
 
 
 def report_long(rows: list[dict]) -> None:
@@ -350,18 +350,20 @@ def write_best(row: dict, path: Path = HERE / "launch_best.toml", check: tuple =
                 header=header)
 
 
-def _fmt(v, digits: int = 7):
+def fmt_cell(v, digits: int = 7):
+    """A CSV cell: a float to ``digits`` significant digits, anything else as it is."""
     return f"{v:.{digits}g}" if isinstance(v, float) else v
 
 
-def _read(path: Path) -> list[dict]:
+def read_rows(path: Path) -> list[dict]:
+    """A CSV's rows, every cell that reads as a number a float (the others as they are)."""
     with open(path) as f:
         rows = list(csv.DictReader(f))
     for r in rows:
         for k, v in r.items():
             try:
                 r[k] = float(v)
-            except ValueError:
+            except (TypeError, ValueError):
                 pass
     return rows
 
@@ -480,7 +482,7 @@ def converging_window() -> None:
     with open(HERE / "launch_converging.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
         writer.writeheader()
-        writer.writerows({k: _fmt(v, 6) for k, v in r.items()} for r in rows)
+        writer.writerows({k: fmt_cell(v, 6) for k, v in r.items()} for r in rows)
 
 
 def main() -> None:
@@ -508,19 +510,19 @@ def main() -> None:
             rows += grid_rows + to_fold(grid_rows)
         write_csv(rows)
         # the hip-width paths start from the written rows, as --hips-only does, so that the two agree
-        rows = _read(out)
+        rows = read_rows(out)
         rows += narrow_hips(rows)
         write_csv(rows)
         report_long(rows)
         print(f"{len(rows)} designs, {time.perf_counter() - t0:.0f} s", flush=True)
     elif args.hips_only:
         t0 = time.perf_counter()
-        rows = [r for r in _read(out) if not str(r["path"]).startswith("hips")]
+        rows = [r for r in read_rows(out) if not str(r["path"]).startswith("hips")]
         rows += narrow_hips(rows)
         write_csv(rows)
         report_long(rows)
         print(f"{len(rows)} designs, {time.perf_counter() - t0:.0f} s", flush=True)
-    plot(_read(out))
+    plot(read_rows(out))
 
 
 if __name__ == "__main__":

@@ -67,6 +67,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 # search walks it.
 from make_clearance_design import BOUNDS as CLEARANCE_BOUNDS  # noqa: E402
 from make_clearance_design import FREE  # noqa: E402
+from make_launch_margin import fmt_cell, read_rows  # noqa: E402
 from make_robust_design import LAUNCH_STEPS, launch_walk  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
@@ -160,7 +161,7 @@ class Search:
         if row["why"] == "parameters":
             self.rejected += 1
         else:
-            self.writer.writerow({k: _fmt(v, 10 if k[0] == "z" else 6) for k, v in row.items()})
+            self.writer.writerow({k: fmt_cell(v, 10 if k[0] == "z" else 6) for k, v in row.items()})
         return row
 
     def child(self) -> tuple[np.ndarray, np.ndarray, int, float]:
@@ -196,22 +197,6 @@ def walk(search: Search, minutes: float) -> None:
                   f"{last - t0:.0f} s", flush=True)
 
 
-def _fmt(v, digits: int = 6):
-    return f"{v:.{digits}g}" if isinstance(v, float) else v
-
-
-def _read(path: Path) -> list[dict]:
-    with open(path) as f:
-        rows = list(csv.DictReader(f))
-    for r in rows:
-        for k, v in r.items():
-            try:
-                r[k] = float(v)
-            except (TypeError, ValueError):
-                pass
-    return rows
-
-
 def _kick_signs() -> list[tuple]:
     """The distinct sign patterns of the kicks of seeds 0-7 (docs/make_basin.py), each with its seeds."""
     signs: dict[tuple, list[int]] = {}
@@ -226,7 +211,7 @@ def finalists(log: Path, n: int, mujoco: int) -> list[dict]:
     from toywalk.model.mujoco_check import walk_in_mujoco
 
     base = load_params(START)
-    rows = [r for r in _read(log) if r["feasible"] == 1]
+    rows = [r for r in read_rows(log) if r["feasible"] == 1]
     rows.sort(key=lambda r: -r["score"])
     out, seen = [], set()
     for r in rows:
@@ -284,7 +269,7 @@ def write_finalists(found: list[dict]) -> None:
     with open(HERE / "launch_search_finalists.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=keys)
         writer.writeheader()
-        writer.writerows({k: _fmt(m.get(k, ""), 6) for k in keys} for m in found)
+        writer.writerows({k: fmt_cell(m.get(k, ""), 6) for k in keys} for m in found)
     best = found[0]
     mj = "; ".join(f"{k[3:]} {v}" for k, v in best.items() if k.startswith("mj_"))
     header = (f"The best design of docs/make_launch_search.py (design {best['design']}, "
@@ -316,7 +301,7 @@ def main() -> None:
         finally:
             search.close()
         reasons = {"parameters (not logged)": search.rejected}
-        for r in _read(args.log):
+        for r in read_rows(args.log):
             reasons[r["why"] or "stable"] = reasons.get(r["why"] or "stable", 0) + 1
         print(f"{search.n} designs: {reasons}; best {search.best}", flush=True)
     if args.finalists > 0:
