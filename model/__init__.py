@@ -36,6 +36,7 @@ _WHERE = {
     "simulate": "simulate",
     "solve_fixed_point": "gait",
     "static_margin": "statics",
+    "strike_resolution": "gait",
 }
 
 __all__ = sorted(_WHERE)

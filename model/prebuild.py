@@ -27,7 +27,8 @@ __all__ = ["LIBRARIES", "build_libraries"]
 #: seconds on this project's 2-core machine with gcc 12 at -O1 (2026-11-27), the walker's
 #: engine 49 and 10 (3D, planar), the fit's collocation intervals 38 and 22 (3D, degrees 4 and
 #: 3 of the periodic and transient fits), about 1 each planar; the compliant heel strike's
-#: (the ``soft_heel`` effect) 5 and 1 (3D, planar; 2026-11-28), and its form in the fits'
+#: (the ``soft_heel`` effect) 5 and 1 (3D, planar; 2026-11-28; the same again at 80 RK4 steps per
+#: tau, the folded step being one), and its form in the fits'
 #: collocation with first derivatives about 40 (3D; 2026-11-29).
 LIBRARIES = (
     ("3D walker", "engine", (False,)),
@@ -36,6 +37,8 @@ LIBRARIES = (
     ("3D soft heel strike in collocation", "soft_link", (False,)),
     ("planar walker", "engine", (True,)),
     ("3D soft heel strike", "soft_heel_kernels", (False,)),
+    ("3D soft heel strike, 80 steps per tau (toywalk gait's resolution check)", "soft_heel_kernels",
+     (False, True, 80)),
     ("planar collocation interval, degree 4", "native_interval", (True, 4)),
     ("planar collocation interval, degree 3", "native_interval", (True, 3)),
     ("planar soft heel strike", "soft_heel_kernels", (True,)),

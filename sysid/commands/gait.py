@@ -5,6 +5,7 @@ them followed in slope (table, families and plot)."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import sys
@@ -44,6 +45,9 @@ def register(subparsers) -> None:
                    help="every distinct gait found from many starts (model.gait_search.all_gaits)")
     p.add_argument("--random-starts", type=int, default=0, metavar="N",
                    help="with --all: also N random starts (default 0)")
+    p.add_argument("--soft-steps", type=int, default=None, metavar="N",
+                   help="with effects.soft_heel on: RK4 steps per contact time constant of the "
+                        "compliant heel strike (default 20; the report checks it at 4 x)")
     p.set_defaults(func=cmd_gait)
 
 
@@ -53,8 +57,18 @@ def cmd_gait(args) -> int:
         return _continue(args, params)
     if args.all_gaits:
         return _all_gaits(args, params)
-    gait = _find_gait(params)
+    soft = params.effects.get("soft_heel", 0.0) > 0.0
+    if args.soft_steps is not None:
+        if not soft:
+            raise CommandError("--soft-steps needs the soft heel strike on (--effect soft_heel=TAU)")
+        if args.soft_steps < 1:
+            raise CommandError(f"--soft-steps must be >= 1, got {args.soft_steps}")
+        if args.basin:
+            raise CommandError("--soft-steps is not taken by --basin, which walks at the default")
+    gait = _find_gait(params, args.soft_steps)
     report = _gait_report(params, gait)
+    if soft:
+        report["strike_resolution"] = _strike_resolution(gait, args.soft_steps)
     if args.basin:
         from toywalk.model.basin import basin_report
 
@@ -64,6 +78,8 @@ def cmd_gait(args) -> int:
         sys.stdout.write("\n")
     else:
         _print_gait(report)
+        if soft:
+            _print_strike_resolution(report["strike_resolution"])
         if args.basin:
             _print_basin(report["basin"])
     return 0
@@ -328,13 +344,46 @@ def _plot_branch(branch, rows, path: Path) -> None:
     plt.close(fig)
 
 
-def _find_gait(params):
-    from toywalk.model.gait import GaitNotFound, find_gait
+def _find_gait(params, soft_steps: int | None = None):
+    from toywalk.model.gait import GaitNotFound, find_gait, solve_fixed_point
+    from toywalk.model.walker import Walker
 
     try:
-        return find_gait(params)
+        gait = find_gait(params)
+        if soft_steps is not None:
+            gait = solve_fixed_point(Walker(params, planar=gait.planar, soft_steps_per_tau=soft_steps),
+                                     gait.fixed_point)
+        return gait
     except GaitNotFound as err:
         raise CommandError(f"no gait found: {err}") from err
+
+
+def _strike_resolution(gait, soft_steps: int | None) -> dict:
+    """The soft strike's integration checked at 4 x its steps per tau (model.gait.strike_resolution)."""
+    from toywalk.model.gait import GaitNotFound, strike_resolution
+
+    try:
+        check = strike_resolution(gait, soft_steps)
+    except GaitNotFound as err:
+        return {"checked": False, "why": f"the gait was lost at 4 x the steps per tau: {err}"}
+    return {"checked": True, **dataclasses.asdict(check), "eigenvalue_error": check.eigenvalue_error,
+            "resolved": check.resolved}
+
+
+def _print_strike_resolution(check: dict, out=None) -> None:
+    from toywalk.model.gait import STRIKE_EIGENVALUE_RESOLUTION
+
+    out = sys.stdout if out is None else out
+    if not check["checked"]:
+        print(f"soft strike       not checked: {check['why']}", file=out)
+        return
+    print(f"soft strike       integrated at {check['steps_per_tau']} RK4 steps per tau; at "
+          f"{check['fine_steps_per_tau']}: max |eigenvalue| {check['fine_max_abs_eigenvalue']:.6g}, "
+          f"step time {check['fine_step_time']:.6g} s, fixed point moved {check['shift']:.2g}", file=out)
+    if not check["resolved"]:
+        print(f"WARNING           the largest eigenvalue moves by {check['eigenvalue_error']:.3g} "
+              f"(> {STRIKE_EIGENVALUE_RESOLUTION:g}) when the strike is integrated finer: the numbers above "
+              f"carry that error; rerun with --soft-steps {check['fine_steps_per_tau']}", file=out)
 
 
 def _gait_report(params, gait) -> dict:

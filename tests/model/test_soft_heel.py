@@ -246,3 +246,24 @@ def test_energy_balance_of_a_step_with_the_phase(clearing):
     assert tangential > 0.1 * lost
     assert abs(e_after - e_before + lost - tangential) > 3e-3 * lost
 
+
+
+def test_strike_resolution_finds_the_integration_error_where_there_is_one():
+    """robust-toy at tau = 4 ms: the default 20 RK4 steps per tau puts the largest eigenvalue
+    0.027 below its value at 80 (0.9497 against 0.9767; 0.9776 at 160, docs/soft_feet.md section
+    5), which the check flags; solved at 80, the same check (against 320) passes. On rigid feet it
+    refuses. A check that always passed, or compared a resolution with itself, fails here."""
+    from toywalk.model import solve_fixed_point, strike_resolution
+
+    params = load_params(DATA / "params" / "robust-toy.toml").replace(**{SOFT: 4e-3})
+    coarse = find_gait(params)
+    check = strike_resolution(coarse)
+    assert (check.steps_per_tau, check.fine_steps_per_tau) == (20, 80)
+    assert check.max_abs_eigenvalue == coarse.max_abs_eigenvalue
+    assert 0.02 < check.eigenvalue_error < 0.04 and not check.resolved
+    fine = solve_fixed_point(Walker(params, soft_steps_per_tau=80), coarse.fixed_point)
+    assert fine.max_abs_eigenvalue == pytest.approx(check.fine_max_abs_eigenvalue, abs=1e-9)
+    again = strike_resolution(fine, steps_per_tau=80)
+    assert again.fine_steps_per_tau == 320 and again.resolved and again.eigenvalue_error < 2e-3
+    with pytest.raises(ValueError, match="soft feet"):
+        strike_resolution(find_gait(params.replace(**{SOFT: 0.0})))

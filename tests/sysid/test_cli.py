@@ -204,3 +204,24 @@ def test_continuation_plot_prints_plain_numbers(tmp_path, monkeypatch):
     branch = types.SimpleNamespace(name="slope", period=1, events=[], planar=False)
     _plot_branch(branch, rows, tmp_path / "b.png")
     assert seen["offsets"] == ["", "", "", ""] and seen["xlabel"] == "slope (rad)"
+
+
+ROBUST_TOY = DATA / "params" / "robust-toy.toml"
+
+
+def test_gait_on_soft_feet_checks_the_strike_integration():
+    """With soft_heel on, `gait` re-solves at 4 x the strike's steps per tau and warns when the
+    largest eigenvalue moves by more than 0.005 (robust-toy at 4 ms: 0.027 at the default);
+    --soft-steps 80 removes the warning; --soft-steps on rigid feet is one line, exit 2."""
+    out = run("gait", "--params", ROBUST_TOY, "--effect", "soft_heel=0.004", "--json")
+    assert out.returncode == 0, out.stderr
+    check = json.loads(out.stdout)["strike_resolution"]
+    assert check["checked"] and not check["resolved"] and check["fine_steps_per_tau"] == 80
+    text = run("gait", "--params", ROBUST_TOY, "--effect", "soft_heel=0.004")
+    assert "WARNING" in text.stdout and "--soft-steps 80" in text.stdout
+    fine = run("gait", "--params", ROBUST_TOY, "--effect", "soft_heel=0.004", "--soft-steps", "80")
+    assert fine.returncode == 0, fine.stderr
+    assert "integrated at 80 RK4 steps per tau; at 320" in fine.stdout and "WARNING" not in fine.stdout
+    rigid = run("gait", "--params", ROBUST_TOY, "--soft-steps", "80")
+    assert rigid.returncode == 2 and len(rigid.stderr.strip().splitlines()) == 1
+    assert "soft_heel" in rigid.stderr
