@@ -1,0 +1,110 @@
+"""One lever at a time on the launchable walker: does anything carry its hand launch from 2.5 x lean?
+
+docs/launch_search_best.toml (docs/gaits.md section 7, "From 1.5 and 2.5 x lean") cannot stand, its
+gait is stable, its hand launch converges from 1.2 and 1.5 x its lean amplitude and falls after 10
+steps from 2.5 x. Its search moved eleven parameters together; this script moves one at a time,
+each lever followed by natural continuation (Newton from the previous gait, in :data:`SUBSTEPS`
+substeps between the values listed), and at every value walks the hand launches at
+:data:`MULTIPLES` x the gait's lean amplitude as the search scores them (``launch_walk`` of
+docs/make_robust_design.py, up to :data:`STEPS` steps):
+
+- **foot_lateral_radius** from 4 mm to the fore-aft radius (the torus's limit, 41.5 mm): the
+  sideways curvature of the foot sets whether the walker rocks on it like a pendulum or tips like a
+  block, the rocking being what lifts the swing foot at the launch;
+- **hinge_stiffness** (a spring between the legs, an elastic band; N m/rad) from -0.02 to 0.08: a
+  swing leg that swings faster (or slower) than the rocking;
+- **hip_damping** (N m s/rad) from 1e-6 to 2e-5: friction in the hinge, which takes energy out of
+  the alternation of long and short steps that the launches from large tips show;
+- **rolling_resistance** (N m s/rad) from 1e-6 to 2e-5: a viscous loss in the rolling contact, for the same.
+
+The effects are the model's library (docs/effects.md); MuJoCo's walker has none of them
+(``build_mjcf`` refuses effects), so a lever that worked would be checked there by building it in.
+
+Output: docs/launch_levers.csv (a row per lever and value: the gait's max |eigenvalue|, clearance,
+lean amplitude and step time, and steps and reason of each launch). Run (one core, kernels cached,
+about 6 minutes)::
+
+    OPENBLAS_NUM_THREADS=1 .venv/bin/python docs/make_launch_levers.py
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+from toywalk.model import Walker, load_params, solve_fixed_point
+from toywalk.model.gait import GaitNotFound
+from toywalk.model.walker import StepFailure
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from make_launch_margin import fmt_cell  # noqa: E402
+from make_robust_design import launch_walk  # noqa: E402
+
+HERE = Path(__file__).resolve().parent
+START = HERE / "launch_search_best.toml"
+MULTIPLES = (1.0, 1.5, 2.0, 2.5, 3.0)
+STEPS = 200
+SUBSTEPS = 5
+LEVERS = {
+    "foot_lateral_radius": (0.004, 0.0075, 0.015, 0.025, 0.035, 0.0415),
+    "effects.hinge_stiffness": (-0.02, -0.01, -0.005, 0.005, 0.01, 0.02, 0.04, 0.08),
+    "effects.hip_damping": (1e-6, 3e-6, 1e-5, 2e-5),
+    "effects.rolling_resistance": (1e-6, 3e-6, 1e-5, 2e-5),
+}
+COLUMNS = ["lever", "value", "max_abs_eigenvalue", "clearance_mm", "lean_deg", "step_time",
+           *(f"{k}_{m:g}" for m in MULTIPLES for k in ("steps", "reason"))]
+
+
+def lever_rows(name: str, values, start) -> list[dict]:
+    """The lever ``name`` followed out from the start's value through ``values`` in each direction
+    (values below the start's first, descending, then those above, ascending)."""
+    base_value = start.get(name) if not name.startswith("effects.") else 0.0
+    below = sorted((v for v in values if v < base_value), reverse=True)
+    above = sorted(v for v in values if v > base_value)
+    rows = []
+    for side in (below, above):
+        z, previous = np.array(start.gait_start), base_value
+        for value in side:
+            row = {"lever": name, "value": value}
+            try:
+                for s in np.linspace(previous, value, SUBSTEPS + 1)[1:]:
+                    params = start.replace(**{name: float(s)})
+                    gait = solve_fixed_point(Walker(params), z)
+                    z = gait.fixed_point
+            except (GaitNotFound, StepFailure) as err:
+                row["reason_1"] = f"gait lost at {s:.4g}: {str(err)[:60]}"
+                rows.append(row)
+                print(f"{name} {value:g}: gait lost at {s:.4g}", flush=True)
+                break
+            previous = value
+            walker = Walker(params)
+            row.update(max_abs_eigenvalue=gait.max_abs_eigenvalue, clearance_mm=1e3 * gait.clearance,
+                       lean_deg=math.degrees(gait.lean_amplitude), step_time=gait.step_time)
+            for m in MULTIPLES:
+                walk = launch_walk(walker, gait, m * gait.lean_amplitude, steps=STEPS)
+                row[f"steps_{m:g}"], row[f"reason_{m:g}"] = walk["steps"], walk["reason"]
+            rows.append(row)
+            print(f"{name} {value:g}: |lambda| {gait.max_abs_eigenvalue:.4f}, "
+                  f"clear {1e3 * gait.clearance:.2f} mm, "
+                  f"lean {math.degrees(gait.lean_amplitude):.3f} deg; launches "
+                  + " ".join(f"{m:g}:{row[f'steps_{m:g}']}{row[f'reason_{m:g}'][:4]}" for m in MULTIPLES),
+                  flush=True)
+    return rows
+
+
+def main() -> None:
+    start = load_params(START)
+    rows = []
+    for name, values in LEVERS.items():
+        rows += lever_rows(name, values, start)
+    with open(HERE / "launch_levers.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=COLUMNS)
+        writer.writeheader()
+        writer.writerows({k: fmt_cell(v, 6) for k, v in r.items()} for r in rows)
+
+
+if __name__ == "__main__":
+    main()
