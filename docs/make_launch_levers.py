@@ -21,21 +21,29 @@ The effects are the model's library (docs/effects.md); MuJoCo's walker has none 
 (``build_mjcf`` refuses effects), so a lever that worked would be checked there by building it in.
 
 Output: docs/launch_levers.csv (a row per lever and value: the gait's max |eigenvalue|, clearance,
-lean amplitude and step time, and steps and reason of each launch). Run (one core, kernels cached,
-about 6 minutes)::
+lean amplitude and step time, and steps and reason of each launch).
+
+``--releases``: other ways to let go, on the shipped robust walker and two others
+(:data:`RELEASE_WALKERS`): ``hand_launch`` with the legs open by :data:`SPLITS` x the gait's own
+opening at heel strike and pushed forward at :data:`RATES` x its stance leg's rate just after heel
+strike (``launch_state``'s ``split`` and ``rate``: the walker rolling forward on its stance foot
+as one body), at the tips of :data:`MULTIPLES` x lean, :data:`STEPS` steps; output
+docs/launch_releases.csv. Run (one core, kernels cached; about 3 and 2 minutes)::
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python docs/make_launch_levers.py
+    OPENBLAS_NUM_THREADS=1 .venv/bin/python docs/make_launch_levers.py --releases
 """
 
 from __future__ import annotations
 
+import argparse
 import csv
 import math
 import sys
 from pathlib import Path
 
 import numpy as np
-from toywalk.model import Walker, load_params, solve_fixed_point
+from toywalk.model import Walker, find_gait, hand_launch, load_params, solve_fixed_point
 from toywalk.model.gait import GaitNotFound
 from toywalk.model.walker import StepFailure
 
@@ -54,6 +62,13 @@ LEVERS = {
     "effects.hip_damping": (1e-6, 3e-6, 1e-5, 2e-5),
     "effects.rolling_resistance": (1e-6, 3e-6, 1e-5, 2e-5),
 }
+RELEASE_WALKERS = {"robust-toy": HERE.parent / "data" / "params" / "robust-toy.toml",
+                   "clearing-toy": HERE.parent / "data" / "params" / "clearing-toy.toml",
+                   "launch_search_best": START}
+SPLITS = (0.0, 0.5, 1.0)
+RATES = (0.0, 0.25, 0.5, 0.75, 1.0)
+RELEASE_COLUMNS = ["walker", "split", "split_rad", "rate", "rate_rad_s", *(f"steps_{m:g}" for m in MULTIPLES),
+                   *(f"reason_{m:g}" for m in MULTIPLES)]
 COLUMNS = ["lever", "value", "max_abs_eigenvalue", "clearance_mm", "lean_deg", "step_time",
            *(f"{k}_{m:g}" for m in MULTIPLES for k in ("steps", "reason"))]
 
@@ -95,7 +110,38 @@ def lever_rows(name: str, values, start) -> list[dict]:
     return rows
 
 
+def release_rows() -> list[dict]:
+    """:data:`RELEASE_WALKERS`' releases over :data:`SPLITS` x :data:`RATES` (the module's docstring)."""
+    rows = []
+    for name, path in RELEASE_WALKERS.items():
+        gait = find_gait(load_params(path))
+        split = float(gait.fixed_point[6] - gait.fixed_point[4])  # trailing minus leading leg's pitch
+        rate = float(gait.fixed_point[5])
+        tips = [m * gait.lean_amplitude for m in MULTIPLES]
+        for a in SPLITS:
+            for b in RATES:
+                launch = hand_launch(gait.params, tips, gait=gait, split=a * split, rate=b * rate,
+                                     steps=STEPS)
+                row = {"walker": name, "split": a, "split_rad": a * split, "rate": b, "rate_rad_s": b * rate}
+                for m, r in zip(MULTIPLES, launch.results[0], strict=True):
+                    row[f"steps_{m:g}"], row[f"reason_{m:g}"] = r.steps, r.reason
+                rows.append(row)
+                print(f"{name} split {a:g} x {split:.3f} rad, rate {b:g} x {rate:.3f} rad/s: "
+                      + " ".join(f"{m:g}:{row[f'steps_{m:g}']}{row[f'reason_{m:g}'][:4]}" for m in MULTIPLES),
+                      flush=True)
+    return rows
+
+
 def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--releases", action="store_true", help="the releases instead of the levers")
+    if parser.parse_args().releases:
+        rows = release_rows()
+        with open(HERE / "launch_releases.csv", "w", newline="") as f:
+            writer = csv.DictWriter(f, fieldnames=RELEASE_COLUMNS)
+            writer.writeheader()
+            writer.writerows({k: fmt_cell(v, 6) for k, v in r.items()} for r in rows)
+        return
     start = load_params(START)
     rows = []
     for name, values in LEVERS.items():

@@ -416,17 +416,27 @@ def recovery_curve(params: Params, sizes: Sequence[float], trials: int, seed=Non
     return RecoveryCurve(sizes, trials, counts)
 
 
-def launch_state(tip: float, heading: float = 0.0) -> np.ndarray:
-    """The public state of a hand launch, shape (8,): at rest, the left foot on the ramp, the axle
-    tipped by ``tip`` (rad, > 0) onto it (psi = -tip: the right end up, the right foot off the
-    ramp), steer ``heading`` (rad) from the fall line, both legs normal to the ramp (theta = 0)
-    but the right leg's pitch 1e-5 rad back, because the step map needs its foot to start behind
-    the stance foot."""
-    return np.array([heading, 0.0, -tip, 0.0, 0.0, 0.0, _LAUNCH_GAP, 0.0])
+def launch_state(tip: float, heading: float = 0.0, split: float = 0.0, rate: float = 0.0) -> np.ndarray:
+    """The public state of a hand launch, shape (8,): the left foot on the ramp, the axle tipped by
+    ``tip`` (rad, > 0) onto it (psi = -tip: the right end up, the right foot off the ramp), steer
+    ``heading`` (rad) from the fall line.
+
+    By default at rest with both legs normal to the ramp (theta = 0), the right leg's pitch 1e-5 rad
+    back, because the step map needs its foot to start behind the stance foot. ``split`` (rad, >= 0)
+    opens the legs symmetrically about the normal instead, the left (stance) leg forward by
+    ``split / 2`` and the right leg back by as much; ``rate`` (rad/s) starts both legs pitching
+    forward together at that rate (a push: the walker rolls forward on its stance foot as one body,
+    the hinge still)."""
+    if not split >= 0.0:
+        raise ValueError(f"split must be >= 0 (rad), got {split!r}")
+    if not math.isfinite(rate):
+        raise ValueError(f"rate must be finite (rad/s), got {rate!r}")
+    half = 0.5 * split
+    return np.array([heading, 0.0, -tip, 0.0, -half, rate, max(half, _LAUNCH_GAP), rate])
 
 
 def hand_launch(params: Params, tip_angles: Sequence[float], headings: Sequence[float] = (0.0,),
-                gait: Gait | None = None, **kwargs) -> HandLaunch:
+                gait: Gait | None = None, split: float = 0.0, rate: float = 0.0, **kwargs) -> HandLaunch:
     """Release the walker from rest, tipped onto one foot, and see whether it walks into its gait.
 
     **The start.** Held by hand with both legs parallel and normal to the ramp, aimed down the fall
@@ -451,6 +461,9 @@ def hand_launch(params: Params, tip_angles: Sequence[float], headings: Sequence[
     headings : sequence of float
         Steer at release (rad).
     gait : Gait, optional
+    split, rate : float
+        A release with the legs open by ``split`` (rad) and pushed forward at ``rate`` (rad/s), as
+        :func:`launch_state` makes it; the defaults are the launch above.
     **kwargs
         Passed to :func:`recovers`.
     """
@@ -463,7 +476,7 @@ def hand_launch(params: Params, tip_angles: Sequence[float], headings: Sequence[
     for heading in headings:
         row = []
         for tip in tips:
-            z0 = launch_state(float(tip), float(heading))
+            z0 = launch_state(float(tip), float(heading), split, rate)
             try:
                 first = walker.step(z0)
             except StepFailure as err:

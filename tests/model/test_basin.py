@@ -147,6 +147,24 @@ def test_the_hand_launch_starts_on_one_foot_and_the_clearing_toy_falls(clearing_
     assert launch.tip_range() is None
 
 
+def test_a_release_with_the_legs_open_and_a_push(clearing_gait):
+    """launch_state's split and rate: the legs open symmetrically about the normal, the rear foot
+    (the right, lifted by the tip) behind the stance foot by about the chord l_eff * split, both
+    legs pitching at the push's rate, the hinge still; the defaults are the launch at rest (the
+    same state to the bit); a negative split is refused."""
+    params = clearing_gait.params
+    tip, split, rate = 0.03, 0.2, 1.5
+    assert np.array_equal(launch_state(tip), launch_state(tip, 0.0, 0.0, 0.0))
+    z = launch_state(tip, split=split, rate=rate)
+    assert z[4] == -0.1 and z[6] == 0.1 and z[5] == z[7] == rate and z[1] == z[3] == 0.0
+    height, ahead = Walker(params).guard(Walker(params).full_state(z))
+    chord = 2 * (params.leg_length - params.foot_radius) * math.sin(split / 2)
+    assert -ahead == pytest.approx(chord, rel=0.1)
+    assert height > 0
+    with pytest.raises(ValueError, match="split"):
+        launch_state(tip, split=-0.1)
+
+
 def test_recovers_agrees_with_the_dense_simulation(clearing_gait):
     """A second route to the same verdict: simulate (dense samples, physical frame) from the
     starts just inside and just outside the basin along a random direction. Inside, it walks the
