@@ -39,10 +39,30 @@ with :func:`hand_launch` at 0.5-3 x lean (400 steps), the clearance, ``can_stand
 +-0.02 rad/s, signs from seeds 0-7; 60 steps) at :data:`KICK_SETTINGS`. The finalists go to
 docs/launch_search_finalists.csv, the best to docs/launch_search_best.toml.
 
+Options for a margin homotopy (off by default; then the walk and its outputs are as above):
+
+- ``--start-from-log CSV``: instead of docs/launch_converging.toml, seed the archive with the
+  :data:`SEEDS` best feasible designs of an earlier log whose launches walk :data:`SEED_STEPS`+ steps
+  from both tips (in docs/launch_search.csv all of them can stand), each re-solved by Newton from its
+  logged fixed point;
+- ``--free-more``: free :data:`MORE` (leg_mass, leg_length, axle_mass) too, in :data:`BOUNDS_MORE`;
+- ``--margin-floor=START:END`` (mm): a design whose fore-aft margin (docs/make_robust_design.py's
+  :func:`fore_aft_margin`, logged as ``margin_mm``) is below the floor is infeasible (``why``
+  ``margin``, no gait solved); the floor rises linearly from START to END over ``--minutes``, and
+  the parents are the best designs above the floor (those closest below it while none is above);
+  the seeds are evaluated before the floor applies;
+- ``--finalists-csv``, ``--best-toml``: where the finalists stage writes;
+- ``--feasible-only``: the log holds the feasible designs alone (the others are counted in the
+  run's last line): docs/launch_push.csv is the run below so logged, 3449 of its 19065 logged
+  designs.
+
 Run (one core of a shared 2-core machine, compiled kernels cached; 0.2-2 s a design)::
 
     OPENBLAS_NUM_THREADS=1 nice -n 5 .venv/bin/python docs/make_launch_search.py --minutes 30
     OPENBLAS_NUM_THREADS=1 nice -n 5 .venv/bin/python docs/make_launch_search.py --minutes 0 --finalists 3
+    OPENBLAS_NUM_THREADS=1 nice -n 5 .venv/bin/python docs/make_launch_search.py --minutes 45 --finalists 0 \
+        --start-from-log docs/launch_search.csv --free-more --margin-floor=-7:1 --log docs/launch_push.csv \
+        --feasible-only
 """
 
 from __future__ import annotations
@@ -68,12 +88,17 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from make_clearance_design import BOUNDS as CLEARANCE_BOUNDS  # noqa: E402
 from make_clearance_design import FREE  # noqa: E402
 from make_launch_margin import fmt_cell, read_rows  # noqa: E402
-from make_robust_design import LAUNCH_STEPS, launch_walk  # noqa: E402
+from make_robust_design import LAUNCH_STEPS, fore_aft_margin, launch_walk  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 START = HERE / "launch_converging.toml"
 #: docs/make_clearance_design.py's box, foot_radius widened from 30 to 60 mm (the start has 39 mm).
 BOUNDS = {**CLEARANCE_BOUNDS, "foot_radius": (0.002, 0.06)}
+#: ``--free-more``: the parameters the walk otherwise holds at the start's values, and their box
+#: (buildable: 20-200 g legs, 8-30 cm long, an axle of up to 100 g; foot_radius stays below
+#: leg_length, or Params refuses the design).
+MORE = ["leg_mass", "leg_length", "axle_mass"]
+BOUNDS_MORE = {"leg_mass": (0.02, 0.2), "leg_length": (0.08, 0.3), "axle_mass": (0.0, 0.1)}
 LO = np.array([BOUNDS[n][0] for n in FREE])
 HI = np.array([BOUNDS[n][1] for n in FREE])
 TIPS = (1.5, 2.5)  # multiples of the gait's lean amplitude: issue 44's launches
@@ -87,9 +112,26 @@ KICK_SETTINGS = ((1e-3, 2.0), (4e-3, 0.6))
 KICK = 0.02  # rad/s
 MUJOCO_LAUNCH_STEPS = 100
 KICK_STEPS = 60
-COLUMNS = ["design", "parent", "sigma", *FREE, "feasible", "why", "max_abs_eigenvalue", "clearance_mm",
-           "lean_deg", "step_time", *(f"{k}_{m:g}" for m in TIPS for k in ("steps", "reason", "dmin")),
-           "score", "can_stand", *(f"z{i}" for i in range(8))]
+#: ``--start-from-log``: seeds are the feasible rows of the old log whose launch walks at least
+#: this many steps from both tips (the best :data:`SEEDS` by score).
+SEED_STEPS = 30
+SEEDS = 30
+
+
+def columns(free: list[str], margin: bool = False) -> list[str]:
+    """The log's columns: ``margin_mm`` (the fore-aft margin) only with ``--margin-floor``."""
+    return ["design", "parent", "sigma", *free, "feasible", "why", *(["margin_mm"] if margin else []),
+            "max_abs_eigenvalue", "clearance_mm", "lean_deg", "step_time",
+            *(f"{k}_{m:g}" for m in TIPS for k in ("steps", "reason", "dmin")), "score", "can_stand",
+            *(f"z{i}" for i in range(8))]
+
+
+COLUMNS = columns(FREE)
+
+
+def walks_both(row: dict, steps: int = SEED_STEPS) -> bool:
+    """Whether a logged (or just evaluated) feasible design walks ``steps`` steps from both tips."""
+    return all(row.get(f"steps_{m:g}") not in (None, "") and int(row[f"steps_{m:g}"]) >= steps for m in TIPS)
 
 
 def score(walks: list[dict]) -> float:
@@ -105,34 +147,54 @@ class Search:
     """The evolutionary walk: every design evaluated is logged; the feasible ones are the archive."""
 
     def __init__(self, log: Path, rng: np.random.Generator, max_eigenvalue: float = 0.99,
-                 min_clearance: float = 0.2e-3):
+                 min_clearance: float = 0.2e-3, free_more: bool = False,
+                 margin_floor: tuple[float, float] | None = None, feasible_only: bool = False):
         self.max_eigenvalue = max_eigenvalue
         self.min_clearance = min_clearance  # m
+        self.free = FREE + MORE if free_more else list(FREE)
+        bounds = {**BOUNDS, **BOUNDS_MORE}
+        self.lo = np.array([bounds[n][0] for n in self.free])
+        self.hi = np.array([bounds[n][1] for n in self.free])
+        # ``--margin-floor`` (m): designs whose fore-aft margin is below ``floor`` are infeasible;
+        # walk() raises it from margin_floor[0] to margin_floor[1]. None: no floor (the default).
+        self.margin_floor = margin_floor
+        self.floor: float | None = None
+        self.frontier: dict | None = None  # the feasible design of largest margin that walks both tips
         self.base = load_params(START)
         self.rng = rng
         self.archive: list[dict] = []
         self.best: dict | None = None
         self.n = 0
         self.rejected = 0  # designs that Params refuses (not logged, to keep the log small)
+        self.feasible_only = feasible_only  # --feasible-only: log the feasible designs alone
+        self.counts: dict[str, int] = {}  # designs by why (stable: feasible), logged or not
         self.file = open(log, "w", newline="")  # noqa: SIM115 -- closed by close()
-        self.writer = csv.DictWriter(self.file, fieldnames=COLUMNS)
+        self.writer = csv.DictWriter(self.file, fieldnames=columns(self.free, margin_floor is not None))
         self.writer.writeheader()
 
     def close(self) -> None:
         self.file.close()
 
     def params_at(self, x: np.ndarray):
-        return self.base.replace(**{n: float(v) for n, v in zip(FREE, x, strict=True)})
+        return self.base.replace(**{n: float(v) for n, v in zip(self.free, x, strict=True)})
 
     def evaluate(self, x: np.ndarray, z: np.ndarray, parent: int = -1, sigma: float = 0.0) -> dict:
-        row = {"design": self.n, "parent": parent, "sigma": sigma, **dict(zip(FREE, x, strict=True)),
+        row = {"design": self.n, "parent": parent, "sigma": sigma, **dict(zip(self.free, x, strict=True)),
                "feasible": 0, "why": ""}
         self.n += 1
+        margin = math.nan
         try:
             params = self.params_at(x)
+            if self.margin_floor is not None:
+                margin = fore_aft_margin(params)
+                row["margin_mm"] = 1e3 * margin
+                if self.floor is not None and margin < self.floor:
+                    raise _BelowFloor
             gait = solve_fixed_point(Walker(params), z)
         except ParameterError:
             row["why"] = "parameters"
+        except _BelowFloor:
+            row["why"] = "margin"
         except (GaitNotFound, StepFailure):
             row["why"] = "no gait"
         else:
@@ -157,31 +219,64 @@ class Search:
                     row["can_stand"] = int(stands)
                     if not stands:
                         self.best = row
-                self.archive.append({**row, "x": np.array(x, dtype=float), "z": gait.fixed_point})
+                self.archive.append({**row, "x": np.array(x, dtype=float), "z": gait.fixed_point,
+                                     "margin": margin})
+                if self.margin_floor is not None and walks_both(row) and (
+                        self.frontier is None or margin > self.frontier["margin"]):
+                    self.frontier = self.archive[-1]
+        why = row["why"] or "stable"
+        self.counts[why] = self.counts.get(why, 0) + 1
         if row["why"] == "parameters":
             self.rejected += 1
-        else:
+        elif row["feasible"] or not self.feasible_only:
             self.writer.writerow({k: fmt_cell(v, 10 if k[0] == "z" else 6) for k, v in row.items()})
         return row
 
     def child(self) -> tuple[np.ndarray, np.ndarray, int, float]:
         """A parent drawn from the :data:`PARENTS` best, moved by a normal step."""
-        ranked = sorted(self.archive, key=lambda r: -r["score"])[:PARENTS]
+        if self.floor is None:
+            ranked = sorted(self.archive, key=lambda r: -r["score"])[:PARENTS]
+        else:
+            # Under a margin floor: the best of those above it, else those closest below it.
+            ranked = sorted(self.archive, key=lambda r: (-min(0.0, r["margin"] - self.floor),
+                                                         -r["score"]))[:PARENTS]
         parent = ranked[self.rng.integers(len(ranked))]
         sigma = float(np.exp(self.rng.uniform(*np.log(SIGMA))))
-        step = sigma * (HI - LO) * self.rng.standard_normal(len(FREE))
-        step[FREE.index("slope")] *= SLOPE_FACTOR
-        return np.clip(parent["x"] + step, LO, HI), parent["z"], parent["design"], sigma
+        step = sigma * (self.hi - self.lo) * self.rng.standard_normal(len(self.free))
+        step[self.free.index("slope")] *= SLOPE_FACTOR
+        return np.clip(parent["x"] + step, self.lo, self.hi), parent["z"], parent["design"], sigma
+
+    def seed_from_log(self, log: Path, n: int = SEEDS) -> None:
+        """Seed the archive with the ``n`` best feasible designs of an earlier log whose launch walks
+        :data:`SEED_STEPS` steps from both tips, each re-solved from its logged fixed point (no floor)."""
+        rows = [r for r in read_rows(log) if r["feasible"] == 1 and walks_both(r)]
+        rows.sort(key=lambda r: -r["score"])
+        for r in rows[:n]:
+            x = np.array([float(r[p]) if p in r else self.base.get(p) for p in self.free])
+            row = self.evaluate(x, np.array([float(r[f"z{i}"]) for i in range(8)]))
+            print(f"seed {int(r['design'])} (design {row['design']}): score {row.get('score')}, "
+                  f"steps {row.get('steps_1.5')} / {row.get('steps_2.5')}, "
+                  f"margin {row.get('margin_mm', math.nan):.2f} mm", flush=True)
 
 
-def walk(search: Search, minutes: float) -> None:
-    x0 = np.array([search.base.get(n) for n in FREE])
-    first = search.evaluate(x0, np.array(search.base.gait_start))
-    print(f"start: score {first.get('score')}, steps {first.get('steps_1.5')} / {first.get('steps_2.5')}",
-          flush=True)
+class _BelowFloor(Exception):
+    """A design whose fore-aft margin is below the current ``--margin-floor``."""
+
+
+def walk(search: Search, minutes: float, start_from: Path | None = None) -> None:
+    if start_from is None:
+        x0 = np.array([search.base.get(n) for n in search.free])
+        first = search.evaluate(x0, np.array(search.base.gait_start))
+        print(f"start: score {first.get('score')}, steps {first.get('steps_1.5')} / {first.get('steps_2.5')}",
+              flush=True)
+    else:
+        search.seed_from_log(start_from)
     t0 = time.perf_counter()
     last = t0
     while time.perf_counter() - t0 < 60 * minutes:
+        if search.margin_floor is not None:
+            lo, hi = search.margin_floor
+            search.floor = lo + (hi - lo) * min(1.0, (time.perf_counter() - t0) / (60 * minutes))
         x, z, parent, sigma = search.child()
         row = search.evaluate(x, z, parent, sigma)
         if row is search.best:
@@ -193,8 +288,16 @@ def walk(search: Search, minutes: float) -> None:
         if time.perf_counter() - last > 60:
             last = time.perf_counter()
             feasible = len(search.archive)
-            print(f"{search.n:5d} designs, {feasible} stable, best {search.best['score']:.4f}, "
-                  f"{last - t0:.0f} s", flush=True)
+            best = "none" if search.best is None else f"{search.best['score']:.4f}"
+            line = f"{search.n:5d} designs, {feasible} stable, best {best}, {last - t0:.0f} s"
+            if search.floor is not None:
+                above = [r for r in search.archive if r["margin"] >= search.floor]
+                f = search.frontier
+                front = "none" if f is None else f"{1e3 * f['margin']:+.2f} mm (design {f['design']})"
+                line += (f"; floor {1e3 * search.floor:+.2f} mm: {len(above)} feasible above it, "
+                         f"{sum(walks_both(r) for r in above)} walk {SEED_STEPS}+ from both; largest margin "
+                         f"walking both {front}")
+            print(line, flush=True)
 
 
 def _kick_signs() -> list[tuple]:
@@ -213,15 +316,16 @@ def finalists(log: Path, n: int, mujoco: int) -> list[dict]:
     base = load_params(START)
     rows = [r for r in read_rows(log) if r["feasible"] == 1]
     rows.sort(key=lambda r: -r["score"])
+    free = [p for p in FREE + MORE if rows and p in rows[0]]
     out, seen = [], set()
     for r in rows:
         if len(out) >= n:
             break
-        key = tuple(round(float(r[p]), 9) for p in FREE)
+        key = tuple(round(float(r[p]), 9) for p in free)
         if key in seen:
             continue
         seen.add(key)
-        params = base.replace(**{p: float(r[p]) for p in FREE})
+        params = base.replace(**{p: float(r[p]) for p in free})
         if can_stand(params).can_stand:
             continue
         gait = solve_fixed_point(Walker(params), np.array([float(r[f"z{i}"]) for i in range(8)]))
@@ -262,11 +366,12 @@ def finalists(log: Path, n: int, mujoco: int) -> list[dict]:
     return out
 
 
-def write_finalists(found: list[dict]) -> None:
+def write_finalists(found: list[dict], csv_path: Path = HERE / "launch_search_finalists.csv",
+                    toml_path: Path = HERE / "launch_search_best.toml") -> None:
     keys = []
     for m in found:
         keys += [k for k in m if k not in keys and k not in ("params", "gait")]
-    with open(HERE / "launch_search_finalists.csv", "w", newline="") as f:
+    with open(csv_path, "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=keys)
         writer.writeheader()
         writer.writerows({k: fmt_cell(m.get(k, ""), 6) for k in keys} for m in found)
@@ -279,7 +384,7 @@ def write_finalists(found: list[dict]) -> None:
               f"hand_launch (400 steps; tip x lean: steps, + converged): {best['hand_launch']}.\n"
               f"MuJoCo: {mj or 'not run'}.\n[gait] start is its fixed point.")
     start = tuple(float(v) for v in best["gait"].fixed_point)
-    save_params(dataclasses.replace(best["params"], gait_start=start), HERE / "launch_search_best.toml",
+    save_params(dataclasses.replace(best["params"], gait_start=start), toml_path,
                 header=header)
 
 
@@ -292,22 +397,43 @@ def main() -> None:
     parser.add_argument("--max-eigenvalue", type=float, default=0.99)
     parser.add_argument("--min-clearance", type=float, default=0.2, help="mm")
     parser.add_argument("--log", type=Path, default=HERE / "launch_search.csv")
+    parser.add_argument("--start-from-log", type=Path, default=None,
+                        help=f"seed the walk with the {SEEDS} best designs of this log that walk "
+                             f"{SEED_STEPS}+ steps from both tips (instead of docs/launch_converging.toml)")
+    parser.add_argument("--free-more", action="store_true", help=f"free {', '.join(MORE)} too")
+    parser.add_argument("--margin-floor", default=None, metavar="START:END",
+                        help="mm: designs whose fore-aft margin is below the floor are infeasible; the "
+                             "floor rises linearly from START to END over --minutes")
+    parser.add_argument("--finalists-csv", type=Path, default=HERE / "launch_search_finalists.csv")
+    parser.add_argument("--best-toml", type=Path, default=HERE / "launch_search_best.toml")
+    parser.add_argument("--feasible-only", action="store_true",
+                        help="log the feasible designs alone (the others are only counted)")
     args = parser.parse_args()
+    if args.start_from_log is not None and args.start_from_log.resolve() == args.log.resolve():
+        parser.error("--start-from-log must differ from --log (the log is rewritten)")
+    floor = None
+    if args.margin_floor is not None:
+        try:
+            floor = tuple(1e-3 * float(v) for v in args.margin_floor.split(":"))
+        except ValueError:
+            floor = ()
+        if len(floor) != 2:
+            parser.error(f"--margin-floor must be START:END in mm, got {args.margin_floor!r}")
     if args.minutes > 0:
         search = Search(args.log, np.random.default_rng(args.seed), args.max_eigenvalue,
-                        1e-3 * args.min_clearance)
+                        1e-3 * args.min_clearance, free_more=args.free_more, margin_floor=floor,
+                        feasible_only=args.feasible_only)
         try:
-            walk(search, args.minutes)
+            walk(search, args.minutes, args.start_from_log)
         finally:
             search.close()
-        reasons = {"parameters (not logged)": search.rejected}
-        for r in read_rows(args.log):
-            reasons[r["why"] or "stable"] = reasons.get(r["why"] or "stable", 0) + 1
-        print(f"{search.n} designs: {reasons}; best {search.best}", flush=True)
+        logged = "; only the stable ones logged" if search.feasible_only else ""
+        print(f"{search.n} designs: {search.counts} (parameters: not logged{logged}); best {search.best}",
+              flush=True)
     if args.finalists > 0:
         found = finalists(args.log, args.finalists, args.mujoco)
         if found:
-            write_finalists(found)
+            write_finalists(found, args.finalists_csv, args.best_toml)
 
 
 if __name__ == "__main__":
