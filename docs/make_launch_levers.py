@@ -15,7 +15,11 @@ docs/make_robust_design.py, up to :data:`STEPS` steps):
   swing leg that swings faster (or slower) than the rocking;
 - **hip_damping** (N m s/rad) from 1e-6 to 2e-5: friction in the hinge, which takes energy out of
   the alternation of long and short steps that the launches from large tips show;
-- **rolling_resistance** (N m s/rad) from 1e-6 to 2e-5: a viscous loss in the rolling contact, for the same.
+- **rolling_resistance** (N m s/rad) from 1e-6 to 2e-5: a viscous loss in the rolling contact, for the same;
+- **hip_coulomb** (N m) from 1e-6 to 3e-5: dry friction in the hinge, which would stop the swing
+  leg's swinging back at the stutter step that ends those launches (docs/gaits.md section 7);
+- **roll_damping** (N m s/rad) from 1e-6 to 1e-4: a viscous loss of the foot's roll on the ramp,
+  which would take the excess rocking of a large tip.
 
 The effects are the model's library (docs/effects.md); MuJoCo's walker has none of them
 (``build_mjcf`` refuses effects), so a lever that worked would be checked there by building it in.
@@ -61,6 +65,8 @@ LEVERS = {
     "effects.hinge_stiffness": (-0.02, -0.01, -0.005, 0.005, 0.01, 0.02, 0.04, 0.08),
     "effects.hip_damping": (1e-6, 3e-6, 1e-5, 2e-5),
     "effects.rolling_resistance": (1e-6, 3e-6, 1e-5, 2e-5),
+    "effects.hip_coulomb": (1e-6, 3e-6, 1e-5, 3e-5),
+    "effects.roll_damping": (1e-6, 1e-5, 1e-4),
 }
 RELEASE_WALKERS = {"robust-toy": HERE.parent / "data" / "params" / "robust-toy.toml",
                    "clearing-toy": HERE.parent / "data" / "params" / "clearing-toy.toml",
