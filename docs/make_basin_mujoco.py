@@ -77,6 +77,7 @@ from make_basin import _write  # noqa: E402  (the same CSV writer as the model's
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 WALKERS = {"robust-toy": ROOT / "data" / "params" / "robust-toy.toml",
+           "launch-toy": ROOT / "data" / "params" / "launch-toy.toml",
            "robust_best": HERE / "robust_best.toml",
            "clearing-toy": ROOT / "data" / "params" / "clearing-toy.toml"}
 CAP = 60  # steps walked at most
@@ -213,9 +214,16 @@ def measure_launches(path: Path) -> list[dict]:
     return rows
 
 
-def measure_curves() -> list[dict]:
+def curves_path(walker: str, suffix: str) -> Path:
+    """docs/basin_mujoco_curves.SUFFIX for :data:`CURVE_WALKER`, docs/basin_mujoco_curves_WALKER.SUFFIX
+    for another (``--walker``)."""
+    return HERE / (f"basin_mujoco_curves.{suffix}" if walker == CURVE_WALKER
+                   else f"basin_mujoco_curves_{walker}.{suffix}")
+
+
+def measure_curves(walker: str = CURVE_WALKER) -> list[dict]:
     """One row per push size, direction and engine setting (the module's docstring)."""
-    gait = find_gait(load_params(WALKERS[CURVE_WALKER]))
+    gait = find_gait(load_params(WALKERS[walker]))
     params, walker = gait.params, Walker(gait.params)
     directions = random_directions(params, gait, CURVE_DIRECTIONS, CURVE_SEED)
     rows = []
@@ -226,14 +234,14 @@ def measure_curves() -> list[dict]:
             t = time.perf_counter()
             steps, reason, scuffs, _, _ = _model_walk(gait, walker, z0)
             recovery = recovers(params, z0, gait, walker=walker)
-            rows.append(dict(walker=CURVE_WALKER, size=size, direction=k, engine="model", contact_time_ms="",
+            rows.append(dict(walker=walker, size=size, direction=k, engine="model", contact_time_ms="",
                              friction="", walked=steps == CAP, steps=steps, outcome=reason,
                              recovered=recovery.recovered, bounces=0, scuffs=scuffs,
                              seconds=round(time.perf_counter() - t, 4)))
             for contact_time, friction in CURVE_SETTINGS:
                 t = time.perf_counter()
                 walk, outcome = _mujoco_walk(gait, z0, contact_time, friction)
-                rows.append(dict(walker=CURVE_WALKER, size=size, direction=k, engine="mujoco",
+                rows.append(dict(walker=walker, size=size, direction=k, engine="mujoco",
                                  contact_time_ms=1e3 * contact_time, friction=friction,
                                  walked=walk.status == "completed", steps=walk.steps, outcome=outcome,
                                  recovered="", bounces=walk.bounces, scuffs=walk.scuffs,
@@ -250,8 +258,8 @@ def measure_curves() -> list[dict]:
     return rows
 
 
-def _read_curves() -> list[dict]:
-    with open(HERE / "basin_mujoco_curves.csv", newline="") as f:
+def _read_curves(walker: str = CURVE_WALKER) -> list[dict]:
+    with open(curves_path(walker, "csv"), newline="") as f:
         return list(csv.DictReader(f))
 
 
@@ -276,14 +284,14 @@ def curve_summary(rows: list[dict]) -> list[tuple[str, np.ndarray, np.ndarray, i
     return out
 
 
-def plot_curves() -> None:
+def plot_curves(walker: str = CURVE_WALKER) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(7, 4.3))
-    series = curve_summary(_read_curves())
+    series = curve_summary(_read_curves(walker))
     styles = ("o-", "s--", "^-", "v-", "d-", "x-")
     for k, ((label, sizes, counts, n), style) in enumerate(zip(series, styles, strict=False)):
         p = counts / n
@@ -294,18 +302,21 @@ def plot_curves() -> None:
     ax.set_xlabel("push size (state_scale units)")
     ax.set_ylabel(f"fraction of {n} random directions")
     ax.set_ylim(-0.05, 1.05)
-    ax.set_title(f"{CURVE_WALKER}: pushes just after a heel strike, model and MuJoCo")
+    ax.set_title(f"{walker}: pushes just after a heel strike, model and MuJoCo")
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    fig.savefig(HERE / "basin_mujoco_curves.png", dpi=110)
-    print("wrote docs/basin_mujoco_curves.png")
+    fig.savefig(curves_path(walker, "png"), dpi=110)
+    print(f"wrote {curves_path(walker, 'png').relative_to(ROOT)}")
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--curves", action="store_true", help="the recovery curves instead of the starts")
     parser.add_argument("--plot-only", action="store_true", help="redraw the curves' figure from the CSV")
+    parser.add_argument("--walker", choices=sorted(WALKERS), default=CURVE_WALKER,
+                        help=f"with --curves, --plot-only: whose curves (default {CURVE_WALKER}; "
+                             "another's go to docs/basin_mujoco_curves_WALKER.csv/png)")
     parser.add_argument("--launches", type=Path, metavar="P.toml",
                         help="this walker's hand launches in both engines instead (docs/launch_mujoco_P.csv)")
     args = parser.parse_args()
@@ -317,13 +328,14 @@ def main() -> None:
         print(f"wrote {out.relative_to(ROOT)} ({len(rows)} rows) in {time.perf_counter() - start:.0f} s")
         return
     if args.plot_only:
-        plot_curves()
+        plot_curves(args.walker)
         return
     if args.curves:
-        rows = measure_curves()
-        _write(HERE / "basin_mujoco_curves.csv", rows)
-        print(f"wrote docs/basin_mujoco_curves.csv ({len(rows)} rows) in {time.perf_counter() - start:.0f} s")
-        plot_curves()
+        rows = measure_curves(args.walker)
+        out = curves_path(args.walker, "csv")
+        _write(out, rows)
+        print(f"wrote {out.relative_to(ROOT)} ({len(rows)} rows) in {time.perf_counter() - start:.0f} s")
+        plot_curves(args.walker)
         return
     rows = measure()
     _write(HERE / "basin_mujoco.csv", rows)
