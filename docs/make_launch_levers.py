@@ -36,23 +36,46 @@ docs/launch_releases.csv. Run (one core, kernels cached; about 3 and 2 minutes):
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python docs/make_launch_levers.py
     OPENBLAS_NUM_THREADS=1 .venv/bin/python docs/make_launch_levers.py --releases
+
+``--slope``: the one lever the searches moved only in tiny steps. Design :data:`DESIGN` of
+docs/launch_push.csv (the margin homotopy's best that cannot stand: fore-aft margin +0.59 mm;
+from 1.5 x lean its launch converges, from 2.5 x it walks 12 steps) followed down in slope from
+its own, 0.0172 rad, to :data:`SLOPE_LOW` in steps of :data:`SLOPE_STEP` (Newton from the last
+gait), and at every slope ``hand_launch`` at :data:`SLOPE_MULTIPLES` x lean (``recovers``'
+defaults: converged within 1e-4 of the fixed point, 600 steps at most) and ``can_stand``. The
+longest run of slopes where the launches from 1.5 and 2.5 x lean both converge is the window; its
+middle, to 1e-4 rad, is docs/launch_toy.toml (its fixed point the ``[gait] start``), which is
+data/params/launch-toy.toml with its header written by hand. Output docs/launch_toy_slope.csv.
+Run (about 3 minutes)::
+
+    OPENBLAS_NUM_THREADS=1 .venv/bin/python docs/make_launch_levers.py --slope
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
+import dataclasses
 import math
 import sys
 from pathlib import Path
 
 import numpy as np
-from toywalk.model import Walker, find_gait, hand_launch, load_params, solve_fixed_point
+from toywalk.model import (
+    Walker,
+    can_stand,
+    find_gait,
+    hand_launch,
+    load_params,
+    save_params,
+    solve_fixed_point,
+)
 from toywalk.model.gait import GaitNotFound
 from toywalk.model.walker import StepFailure
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from make_launch_margin import fmt_cell  # noqa: E402
+from make_launch_margin import fmt_cell, read_rows  # noqa: E402
+from make_launch_search import FREE, MORE  # noqa: E402
 from make_robust_design import launch_walk  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
@@ -75,6 +98,12 @@ SPLITS = (0.0, 0.5, 1.0)
 RATES = (0.0, 0.25, 0.5, 0.75, 1.0)
 RELEASE_COLUMNS = ["walker", "split", "split_rad", "rate", "rate_rad_s", *(f"steps_{m:g}" for m in MULTIPLES),
                    *(f"reason_{m:g}" for m in MULTIPLES)]
+DESIGN = 35044
+SLOPE_LOW = 0.0068
+SLOPE_STEP = 1e-4
+SLOPE_MULTIPLES = (0.5, 1.0, 1.5, 2.0, 2.5, 3.0)
+SLOPE_COLUMNS = ["slope", "max_abs_eigenvalue", "clearance_mm", "lean_deg", "step_time", "can_stand",
+                 *(f"{k}_{m:g}" for m in SLOPE_MULTIPLES for k in ("steps", "reason"))]
 COLUMNS = ["lever", "value", "max_abs_eigenvalue", "clearance_mm", "lean_deg", "step_time",
            *(f"{k}_{m:g}" for m in MULTIPLES for k in ("steps", "reason"))]
 
@@ -138,10 +167,79 @@ def release_rows() -> list[dict]:
     return rows
 
 
+def slope_rows() -> tuple[list[dict], list]:
+    """:data:`DESIGN` followed down in slope (the module's docstring): the rows, and the gaits."""
+    base = load_params(HERE / "launch_converging.toml")
+    row = next(r for r in read_rows(HERE / "launch_push.csv") if int(r["design"]) == DESIGN)
+    params = base.replace(**{n: float(row[n]) for n in FREE + MORE})
+    z = np.array([float(row[f"z{i}"]) for i in range(8)])
+    rows, gaits = [], []
+    n = int(round((params.slope - SLOPE_LOW) / SLOPE_STEP))
+    top = SLOPE_LOW + n * SLOPE_STEP  # the grid of SLOPE_STEP below the design's own slope
+    for k, slope in enumerate([params.slope, *(top - i * SLOPE_STEP for i in range(n + 1))]):
+        here = params.replace(slope=float(round(slope, 10)))
+        gait = solve_fixed_point(Walker(here), z)
+        z = gait.fixed_point
+        if k == 0:
+            continue  # the design itself: only the start of the path
+        tips = [m * gait.lean_amplitude for m in SLOPE_MULTIPLES]
+        launch = hand_launch(here, tips, gait=gait)
+        out = {"slope": here.slope, "max_abs_eigenvalue": gait.max_abs_eigenvalue,
+               "clearance_mm": 1e3 * gait.clearance, "lean_deg": math.degrees(gait.lean_amplitude),
+               "step_time": gait.step_time, "can_stand": int(can_stand(here).can_stand)}
+        for m, r in zip(SLOPE_MULTIPLES, launch.results[0], strict=True):
+            out[f"steps_{m:g}"], out[f"reason_{m:g}"] = r.steps, r.reason
+        rows.append(out)
+        gaits.append(gait)
+        print(f"slope {here.slope:.4f}: |lambda| {gait.max_abs_eigenvalue:.4f}, stands {out['can_stand']}; "
+              + " ".join(f"{m:g}:{out[f'steps_{m:g}']}{out[f'reason_{m:g}'][:4]}" for m in SLOPE_MULTIPLES),
+              flush=True)
+    return rows, gaits
+
+
+def launch_window(rows: list[dict]) -> tuple[int, int]:
+    """(first, last) index of the longest run of rows where the launches from 1.5 and 2.5 x lean
+    both converge (the first such run of that length)."""
+    ok = [r["reason_1.5"] == "recovered" and r["reason_2.5"] == "recovered" and not r["can_stand"]
+          for r in rows]
+    best, start = (0, -1), None
+    for i, good in enumerate([*ok, False]):
+        if good and start is None:
+            start = i
+        elif not good and start is not None:
+            if i - 1 - start > best[1] - best[0]:
+                best = (start, i - 1)
+            start = None
+    return best
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--releases", action="store_true", help="the releases instead of the levers")
-    if parser.parse_args().releases:
+    parser.add_argument("--slope", action="store_true", help="design 35044 in slope instead of the levers")
+    args = parser.parse_args()
+    if args.slope:
+        rows, gaits = slope_rows()
+        with open(HERE / "launch_toy_slope.csv", "w", newline="") as f:
+            writer = csv.DictWriter(f, fieldnames=SLOPE_COLUMNS)
+            writer.writeheader()
+            writer.writerows({k: fmt_cell(v, 6) for k, v in r.items()} for r in rows)
+        first, last = launch_window(rows)
+        if last < first:
+            print("no slope where both launches converge")
+            return
+        middle = (first + last) // 2
+        gait = gaits[middle]
+        header = (f"Design {DESIGN} of docs/launch_push.csv at the middle of the slopes "
+                  f"{rows[last]['slope']:.4f}-{rows[first]['slope']:.4f} rad where its hand launch "
+                  "converges from 1.5 and 2.5 x lean (docs/make_launch_levers.py --slope).\n"
+                  "[gait] start is its fixed point.")
+        save_params(dataclasses.replace(gait.params, gait_start=tuple(float(v) for v in gait.fixed_point)),
+                    HERE / "launch_toy.toml", header=header)
+        print(f"window {rows[last]['slope']:.4f}-{rows[first]['slope']:.4f} rad; wrote docs/launch_toy.toml "
+              f"(slope {gait.params.slope:.4f})")
+        return
+    if args.releases:
         rows = release_rows()
         with open(HERE / "launch_releases.csv", "w", newline="") as f:
             writer = csv.DictWriter(f, fieldnames=RELEASE_COLUMNS)
