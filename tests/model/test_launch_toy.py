@@ -1,7 +1,7 @@
 """data/params/launch-toy.toml (docs/gaits.md section 7, "launch-toy"): a walker that cannot stand,
 walks stably and walks into its gait from a hand launch at 1.5 and 2.5 times its lean amplitude;
-in MuJoCo (slow) issue 44's launches and kicks at two contact settings that chose nothing (the
-walker and its slope were chosen in the model alone)."""
+in MuJoCo (slow) issue 44's launches and kicks at two contact settings (the walker's slope was
+chosen by a rule on the model's launches; no MuJoCo walk at this slope chose anything)."""
 
 import math
 
