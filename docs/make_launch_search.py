@@ -52,6 +52,10 @@ Options for a margin homotopy (off by default; then the walk and its outputs are
   the parents are the best designs above the floor (those closest below it while none is above);
   the seeds are evaluated before the floor applies;
 - ``--finalists-csv``, ``--best-toml``: where the finalists stage writes;
+- ``--start P.toml``: the walk starts from this walker instead (its ``[gait] start`` its fixed
+  point), and the finalists are built on it;
+- ``--clearance-to MM``: the clearance floor rises from ``--min-clearance`` to MM over the run,
+  parents ranked as under the margin floor;
 - ``--feasible-only``: the log holds the feasible designs alone (the others are counted in the
   run's last line): docs/launch_push.csv is the run below so logged, 3449 of its 19065 logged
   designs.
@@ -148,7 +152,8 @@ class Search:
 
     def __init__(self, log: Path, rng: np.random.Generator, max_eigenvalue: float = 0.99,
                  min_clearance: float = 0.2e-3, free_more: bool = False,
-                 margin_floor: tuple[float, float] | None = None, feasible_only: bool = False):
+                 margin_floor: tuple[float, float] | None = None, feasible_only: bool = False,
+                 start: Path = START, clearance_to: float | None = None):
         self.max_eigenvalue = max_eigenvalue
         self.min_clearance = min_clearance  # m
         self.free = FREE + MORE if free_more else list(FREE)
@@ -160,7 +165,9 @@ class Search:
         self.margin_floor = margin_floor
         self.floor: float | None = None
         self.frontier: dict | None = None  # the feasible design of largest margin that walks both tips
-        self.base = load_params(START)
+        self.base = load_params(start)
+        # ``--clearance-to`` (m): walk() raises min_clearance from its start to this. None: fixed.
+        self.clearance_range = None if clearance_to is None else (min_clearance, clearance_to)
         self.rng = rng
         self.archive: list[dict] = []
         self.best: dict | None = None
@@ -234,12 +241,17 @@ class Search:
 
     def child(self) -> tuple[np.ndarray, np.ndarray, int, float]:
         """A parent drawn from the :data:`PARENTS` best, moved by a normal step."""
-        if self.floor is None:
+        if self.floor is None and self.clearance_range is None:
             ranked = sorted(self.archive, key=lambda r: -r["score"])[:PARENTS]
         else:
-            # Under a margin floor: the best of those above it, else those closest below it.
-            ranked = sorted(self.archive, key=lambda r: (-min(0.0, r["margin"] - self.floor),
-                                                         -r["score"]))[:PARENTS]
+            # Under a rising floor (margin, clearance): the best of those above it, else those
+            # closest below it (shortfalls in mm).
+            def shortfall(r: dict) -> float:
+                short = 0.0 if self.floor is None else min(0.0, r["margin"] - self.floor)
+                if self.clearance_range is not None:
+                    short += min(0.0, 1e-3 * r["clearance_mm"] - self.min_clearance)
+                return -short
+            ranked = sorted(self.archive, key=lambda r: (shortfall(r), -r["score"]))[:PARENTS]
         parent = ranked[self.rng.integers(len(ranked))]
         sigma = float(np.exp(self.rng.uniform(*np.log(SIGMA))))
         step = sigma * (self.hi - self.lo) * self.rng.standard_normal(len(self.free))
@@ -274,9 +286,13 @@ def walk(search: Search, minutes: float, start_from: Path | None = None) -> None
     t0 = time.perf_counter()
     last = t0
     while time.perf_counter() - t0 < 60 * minutes:
+        progress = min(1.0, (time.perf_counter() - t0) / (60 * minutes))
         if search.margin_floor is not None:
             lo, hi = search.margin_floor
-            search.floor = lo + (hi - lo) * min(1.0, (time.perf_counter() - t0) / (60 * minutes))
+            search.floor = lo + (hi - lo) * progress
+        if search.clearance_range is not None:
+            lo, hi = search.clearance_range
+            search.min_clearance = lo + (hi - lo) * progress
         x, z, parent, sigma = search.child()
         row = search.evaluate(x, z, parent, sigma)
         if row is search.best:
@@ -290,6 +306,10 @@ def walk(search: Search, minutes: float, start_from: Path | None = None) -> None
             feasible = len(search.archive)
             best = "none" if search.best is None else f"{search.best['score']:.4f}"
             line = f"{search.n:5d} designs, {feasible} stable, best {best}, {last - t0:.0f} s"
+            if search.clearance_range is not None:
+                clear = [r for r in search.archive if 1e-3 * r["clearance_mm"] >= search.min_clearance]
+                line += (f"; clearance floor {1e3 * search.min_clearance:.3f} mm: {len(clear)} feasible "
+                         f"above it, {sum(walks_both(r) for r in clear)} walk {SEED_STEPS}+ from both")
             if search.floor is not None:
                 above = [r for r in search.archive if r["margin"] >= search.floor]
                 f = search.frontier
@@ -308,12 +328,12 @@ def _kick_signs() -> list[tuple]:
     return list(signs.items())
 
 
-def finalists(log: Path, n: int, mujoco: int) -> list[dict]:
+def finalists(log: Path, n: int, mujoco: int, start: Path = START) -> list[dict]:
     """The ``n`` best designs of the log that cannot stand, measured in full; MuJoCo for the first
     ``mujoco`` of them."""
     from toywalk.model.mujoco_check import walk_in_mujoco
 
-    base = load_params(START)
+    base = load_params(start)
     rows = [r for r in read_rows(log) if r["feasible"] == 1]
     rows.sort(key=lambda r: -r["score"])
     free = [p for p in FREE + MORE if rows and p in rows[0]]
@@ -406,6 +426,10 @@ def main() -> None:
                              "floor rises linearly from START to END over --minutes")
     parser.add_argument("--finalists-csv", type=Path, default=HERE / "launch_search_finalists.csv")
     parser.add_argument("--best-toml", type=Path, default=HERE / "launch_search_best.toml")
+    parser.add_argument("--start", type=Path, default=START,
+                        help="the walker the walk starts from (its [gait] start a fixed point)")
+    parser.add_argument("--clearance-to", type=float, default=None, metavar="MM",
+                        help="raise the clearance floor from --min-clearance to this over --minutes")
     parser.add_argument("--feasible-only", action="store_true",
                         help="log the feasible designs alone (the others are only counted)")
     args = parser.parse_args()
@@ -422,7 +446,8 @@ def main() -> None:
     if args.minutes > 0:
         search = Search(args.log, np.random.default_rng(args.seed), args.max_eigenvalue,
                         1e-3 * args.min_clearance, free_more=args.free_more, margin_floor=floor,
-                        feasible_only=args.feasible_only)
+                        feasible_only=args.feasible_only, start=args.start,
+                        clearance_to=None if args.clearance_to is None else 1e-3 * args.clearance_to)
         try:
             walk(search, args.minutes, args.start_from_log)
         finally:
@@ -431,7 +456,7 @@ def main() -> None:
         print(f"{search.n} designs: {search.counts} (parameters: not logged{logged}); best {search.best}",
               flush=True)
     if args.finalists > 0:
-        found = finalists(args.log, args.finalists, args.mujoco)
+        found = finalists(args.log, args.finalists, args.mujoco, args.start)
         if found:
             write_finalists(found, args.finalists_csv, args.best_toml)
 
