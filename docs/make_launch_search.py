@@ -328,13 +328,14 @@ def _kick_signs() -> list[tuple]:
     return list(signs.items())
 
 
-def finalists(log: Path, n: int, mujoco: int, start: Path = START) -> list[dict]:
-    """The ``n`` best designs of the log that cannot stand, measured in full; MuJoCo for the first
-    ``mujoco`` of them."""
+def finalists(log: Path, n: int, mujoco: int, start: Path = START,
+              min_clearance_mm: float = 0.0) -> list[dict]:
+    """The ``n`` best designs of the log that cannot stand (and clear by ``min_clearance_mm``),
+    measured in full; MuJoCo for the first ``mujoco`` of them."""
     from toywalk.model.mujoco_check import walk_in_mujoco
 
     base = load_params(start)
-    rows = [r for r in read_rows(log) if r["feasible"] == 1]
+    rows = [r for r in read_rows(log) if r["feasible"] == 1 and r["clearance_mm"] >= min_clearance_mm]
     rows.sort(key=lambda r: -r["score"])
     free = [p for p in FREE + MORE if rows and p in rows[0]]
     out, seen = [], set()
@@ -430,6 +431,8 @@ def main() -> None:
                         help="the walker the walk starts from (its [gait] start a fixed point)")
     parser.add_argument("--clearance-to", type=float, default=None, metavar="MM",
                         help="raise the clearance floor from --min-clearance to this over --minutes")
+    parser.add_argument("--finalists-clearance", type=float, default=0.0, metavar="MM",
+                        help="finalists only among designs clearing by at least this much")
     parser.add_argument("--feasible-only", action="store_true",
                         help="log the feasible designs alone (the others are only counted)")
     args = parser.parse_args()
@@ -456,7 +459,7 @@ def main() -> None:
         print(f"{search.n} designs: {search.counts} (parameters: not logged{logged}); best {search.best}",
               flush=True)
     if args.finalists > 0:
-        found = finalists(args.log, args.finalists, args.mujoco, args.start)
+        found = finalists(args.log, args.finalists, args.mujoco, args.start, args.finalists_clearance)
         if found:
             write_finalists(found, args.finalists_csv, args.best_toml)
 
