@@ -54,7 +54,6 @@ Run (about 3 minutes)::
 from __future__ import annotations
 
 import argparse
-import csv
 import dataclasses
 import math
 import sys
@@ -74,8 +73,8 @@ from toywalk.model.gait import GaitNotFound
 from toywalk.model.walker import StepFailure
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from make_launch_margin import fmt_cell, read_rows  # noqa: E402
-from make_launch_search import FREE, MORE  # noqa: E402
+from make_launch_margin import read_rows, write_rows  # noqa: E402
+from make_launch_search import logged_params  # noqa: E402
 from make_robust_design import launch_walk  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
@@ -171,7 +170,7 @@ def slope_rows() -> tuple[list[dict], list]:
     """:data:`DESIGN` followed down in slope (the module's docstring): the rows, and the gaits."""
     base = load_params(HERE / "launch_converging.toml")
     row = next(r for r in read_rows(HERE / "launch_push.csv") if int(r["design"]) == DESIGN)
-    params = base.replace(**{n: float(row[n]) for n in FREE + MORE})
+    params = logged_params(base, row)
     z = np.array([float(row[f"z{i}"]) for i in range(8)])
     rows, gaits = [], []
     n = int(round((params.slope - SLOPE_LOW) / SLOPE_STEP))
@@ -220,10 +219,7 @@ def main() -> None:
     args = parser.parse_args()
     if args.slope:
         rows, gaits = slope_rows()
-        with open(HERE / "launch_toy_slope.csv", "w", newline="") as f:
-            writer = csv.DictWriter(f, fieldnames=SLOPE_COLUMNS)
-            writer.writeheader()
-            writer.writerows({k: fmt_cell(v, 6) for k, v in r.items()} for r in rows)
+        write_rows(HERE / "launch_toy_slope.csv", rows, SLOPE_COLUMNS)
         first, last = launch_window(rows)
         if last < first:
             print("no slope where both launches converge")
@@ -241,19 +237,13 @@ def main() -> None:
         return
     if args.releases:
         rows = release_rows()
-        with open(HERE / "launch_releases.csv", "w", newline="") as f:
-            writer = csv.DictWriter(f, fieldnames=RELEASE_COLUMNS)
-            writer.writeheader()
-            writer.writerows({k: fmt_cell(v, 6) for k, v in r.items()} for r in rows)
+        write_rows(HERE / "launch_releases.csv", rows, RELEASE_COLUMNS)
         return
     start = load_params(START)
     rows = []
     for name, values in LEVERS.items():
         rows += lever_rows(name, values, start)
-    with open(HERE / "launch_levers.csv", "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=COLUMNS)
-        writer.writeheader()
-        writer.writerows({k: fmt_cell(v, 6) for k, v in r.items()} for r in rows)
+    write_rows(HERE / "launch_levers.csv", rows, COLUMNS)
 
 
 if __name__ == "__main__":

@@ -285,11 +285,8 @@ def headline(rows: list[dict]) -> dict | None:
 
 
 def write_csv(rows: list[dict]) -> None:
-    with open(HERE / "launch_margin.csv", "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=COLUMNS)
-        writer.writeheader()
-        # five digits for the measurements, ten for the fixed point (a Newton start)
-        writer.writerows({k: fmt_cell(v, 10 if k[0] == "z" else 5) for k, v in r.items()} for r in rows)
+    # five digits for the measurements, ten for the fixed point (a Newton start)
+    write_rows(HERE / "launch_margin.csv", rows, COLUMNS, digits=5, fixed_point_digits=10)
 
 
 def report_long(rows: list[dict]) -> None:
@@ -353,6 +350,23 @@ def write_best(row: dict, path: Path = HERE / "launch_best.toml", check: tuple =
 def fmt_cell(v, digits: int = 7):
     """A CSV cell: a float to ``digits`` significant digits, anything else as it is."""
     return f"{v:.{digits}g}" if isinstance(v, float) else v
+
+
+def fmt_row(row: dict, digits: int = 6, fixed_point_digits: int | None = None) -> dict:
+    """A row's cells (:func:`fmt_cell`), the fixed point's (columns ``z0``..``z7``, any key starting
+    with ``z``) to ``fixed_point_digits`` when given: they are Newton starts."""
+    return {k: fmt_cell(v, fixed_point_digits if fixed_point_digits and k[0] == "z" else digits)
+            for k, v in row.items()}
+
+
+def write_rows(path: Path, rows: list[dict], columns: list[str] | None = None, digits: int = 6,
+               fixed_point_digits: int | None = None) -> None:
+    """A CSV of ``rows`` (:func:`fmt_row`), ``columns`` those of the first row unless given (a row
+    without one of them leaves its cell empty)."""
+    with open(path, "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]) if columns is None else columns)
+        writer.writeheader()
+        writer.writerows(fmt_row(r, digits, fixed_point_digits) for r in rows)
 
 
 def read_rows(path: Path) -> list[dict]:
@@ -479,10 +493,7 @@ def converging_window() -> None:
         for r in done[:: max(1, len(done) // 10)] + done[-1:]:
             print(f"  {r['parameter']} {r['value']:.6g}: |lambda| {r['max_abs_eigenvalue']:.4f}, clear "
                   f"{r['clearance_mm']:.2f} mm, converges at {r['converges_at'] or '-'} x lean", flush=True)
-    with open(HERE / "launch_converging.csv", "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows({k: fmt_cell(v, 6) for k, v in r.items()} for r in rows)
+    write_rows(HERE / "launch_converging.csv", rows)
 
 
 def main() -> None:

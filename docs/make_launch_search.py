@@ -91,7 +91,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 # search walks it.
 from make_clearance_design import BOUNDS as CLEARANCE_BOUNDS  # noqa: E402
 from make_clearance_design import FREE  # noqa: E402
-from make_launch_margin import fmt_cell, read_rows  # noqa: E402
+from make_launch_margin import fmt_row, read_rows, write_rows  # noqa: E402
 from make_robust_design import LAUNCH_STEPS, fore_aft_margin, launch_walk  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
@@ -236,7 +236,7 @@ class Search:
         if row["why"] == "parameters":
             self.rejected += 1
         elif row["feasible"] or not self.feasible_only:
-            self.writer.writerow({k: fmt_cell(v, 10 if k[0] == "z" else 6) for k, v in row.items()})
+            self.writer.writerow(fmt_row(row, 6, fixed_point_digits=10))
         return row
 
     def child(self) -> tuple[np.ndarray, np.ndarray, int, float]:
@@ -328,6 +328,12 @@ def _kick_signs() -> list[tuple]:
     return list(signs.items())
 
 
+def logged_params(base, row: dict):
+    """A logged design's walker: ``base`` with the row's parameters (:data:`FREE`, and :data:`MORE`
+    where the log has them)."""
+    return base.replace(**{p: float(row[p]) for p in FREE + MORE if p in row})
+
+
 def finalists(log: Path, n: int, mujoco: int, start: Path = START,
               min_clearance_mm: float = 0.0) -> list[dict]:
     """The ``n`` best designs of the log that cannot stand (and clear by ``min_clearance_mm``),
@@ -346,7 +352,7 @@ def finalists(log: Path, n: int, mujoco: int, start: Path = START,
         if key in seen:
             continue
         seen.add(key)
-        params = base.replace(**{p: float(r[p]) for p in free})
+        params = logged_params(base, r)
         if can_stand(params).can_stand:
             continue
         gait = solve_fixed_point(Walker(params), np.array([float(r[f"z{i}"]) for i in range(8)]))
@@ -392,10 +398,7 @@ def write_finalists(found: list[dict], csv_path: Path = HERE / "launch_search_fi
     keys = []
     for m in found:
         keys += [k for k in m if k not in keys and k not in ("params", "gait")]
-    with open(csv_path, "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=keys)
-        writer.writeheader()
-        writer.writerows({k: fmt_cell(m.get(k, ""), 6) for k in keys} for m in found)
+    write_rows(csv_path, [{k: m[k] for k in keys if k in m} for m in found], keys)
     best = found[0]
     mj = "; ".join(f"{k[3:]} {v}" for k, v in best.items() if k.startswith("mj_"))
     header = (f"The best design of docs/make_launch_search.py (design {best['design']}, "
