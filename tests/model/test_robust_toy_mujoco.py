@@ -10,31 +10,22 @@ the loaded 2-core machine), the kicks all but 0.2 s of it: six 60-step walks a c
 
 import math
 
-import numpy as np
 import pytest
 from toywalk.model import Walker, find_gait, load_params
 from toywalk.model.basin import launch_state
 from toywalk.model.walker import StepFailure
 
 from ..conftest import DATA
+from .kicks import STEPS, kicked_walks
 
 pytest.importorskip("mujoco")
 from toywalk.model.mujoco_check import walk_in_mujoco  # noqa: E402
-
-STEPS = 60  # issue 44: a kicked walker walks at least 60 heel strikes
-KICK = 0.02  # rad/s on each of the four rates (issue 44's kick)
-SEEDS = range(8)  # the signs of docs/make_basin.py and docs/make_basin_mujoco.py
 
 
 @pytest.fixture(scope="module")
 def gait():
     """The gait from the file's [gait] start, its fixed point (max |eigenvalue| 0.935)."""
     return find_gait(load_params(DATA / "params" / "robust-toy.toml"))
-
-
-def _kick(seed: int) -> np.ndarray:
-    """The four rates' signs of a kick, drawn as docs/make_basin.py draws them."""
-    return np.random.default_rng(seed).choice([-1.0, 1.0], 4)
 
 
 # Two contact settings (time constant (s), friction) from the two ends of issue 44's range (1-4 ms,
@@ -50,17 +41,8 @@ def test_every_kick_walks_60_steps_in_mujoco(gait, contact_time, friction):
     (six walks) and counted for every seed that draws it. None of these walks bounces; the walker
     it was made from, docs/robust_best.toml, bounces at (1 ms, friction 1) with seed 5, which
     tests/model/test_mujoco.py holds."""
-    walked = {}
-    for seed in SEEDS:
-        signs = tuple(_kick(seed))
-        if signs not in walked:
-            z0 = gait.fixed_point.copy()
-            z0[[1, 3, 5, 7]] += KICK * np.array(signs)
-            walk = walk_in_mujoco(gait.params, z0, steps=STEPS, friction=friction, contact_time=contact_time,
-                                  max_time=2.0 * STEPS * gait.step_time)
-            walked[signs] = (walk.status, walk.steps, walk.message)
+    walked, outcomes = kicked_walks(gait, contact_time, friction)
     assert len(walked) == 6
-    outcomes = [walked[tuple(_kick(seed))] for seed in SEEDS]
     assert all(status == "completed" and steps == STEPS for status, steps, _ in outcomes), outcomes
 
 
