@@ -4,6 +4,7 @@ section 8).
     OPENBLAS_NUM_THREADS=1 MUJOCO_GL=egl .venv/bin/python docs/make_basin_mujoco.py   # about 3.5 minutes
     OPENBLAS_NUM_THREADS=1 MUJOCO_GL=egl .venv/bin/python docs/make_basin_mujoco.py --curves
     OPENBLAS_NUM_THREADS=1 MUJOCO_GL=egl .venv/bin/python docs/make_basin_mujoco.py --plot-only
+    OPENBLAS_NUM_THREADS=1 MUJOCO_GL=egl .venv/bin/python docs/make_basin_mujoco.py --long       # 2 minutes
     OPENBLAS_NUM_THREADS=1 MUJOCO_GL=egl .venv/bin/python docs/make_basin_mujoco.py \
         --launches docs/launch_converging.toml                                      # about 5 minutes
 
@@ -12,7 +13,13 @@ amplitude in the model (``hand_launch``, up to 200 steps) and in MuJoCo (200 hee
 six contact settings below; docs/launch_mujoco_P.csv, one row per tip and engine setting
 (``steps``, ``outcome``, ``scuffs``, ``bounces``, ``last10_step_time_ms``).
 
+**Long walks** (``--long``): robust-toy, launch-toy and launch-clear-toy from their gaits' fixed
+points, 300 heel strikes at 1, 2 and 4 ms (friction 1): does MuJoCo's soft contact keep the gait?
+docs/basin_mujoco_long.csv (steps, outcome, and the step times' mean and standard deviation over
+the first and the last 40 steps).
+
 **Starts** (the default). For data/params/robust-toy.toml (the shipped robust walker, section 7),
+data/params/launch-toy.toml and data/params/launch-clear-toy.toml (the walkers started by hand),
 docs/robust_best.toml (the rigid design search's best, which robust-toy was made from) and
 data/params/clearing-toy.toml, from three kinds of start, each walked at most 60 steps:
 
@@ -78,6 +85,7 @@ HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 WALKERS = {"robust-toy": ROOT / "data" / "params" / "robust-toy.toml",
            "launch-toy": ROOT / "data" / "params" / "launch-toy.toml",
+           "launch-clear-toy": ROOT / "data" / "params" / "launch-clear-toy.toml",
            "robust_best": HERE / "robust_best.toml",
            "clearing-toy": ROOT / "data" / "params" / "clearing-toy.toml"}
 CAP = 60  # steps walked at most
@@ -102,6 +110,13 @@ CURVE_SETTINGS = ((1e-3, 1.0), (2e-3, 0.6), (4e-3, 0.6))
 # heel strikes walked at most (a converging launch takes 100-150 steps in the model).
 LAUNCH_TIPS = (0.5, 0.8, 1.0, 1.1, 1.2, 1.5, 2.0, 2.5)
 LAUNCH_CAP = 200
+# Long walks (--long): the shipped walkers of issue 44 from their fixed points, this many heel strikes,
+# at three contact times with friction 1; the spread of the step times over the first and the last
+# LONG_WINDOW steps says whether the walk settles (a gait stable in that engine) or drifts.
+LONG_WALKERS = ("robust-toy", "launch-toy", "launch-clear-toy")
+LONG_CAP = 300
+LONG_SETTINGS = ((1e-3, 1.0), (2e-3, 1.0), (4e-3, 1.0))
+LONG_WINDOW = 40
 
 
 def _starts(gait) -> list[tuple[str, float, np.ndarray]]:
@@ -183,6 +198,30 @@ def measure() -> list[dict]:
                                  last10_step_time_ms=last_ms, seconds=time.perf_counter() - t))
             print(f"  {label:18s} model {steps:2d} {reason:15s} | MuJoCo "
                   + "  ".join(f"{r['steps']:2d} {r['outcome']}" for r in rows[-len(SETTINGS):]), flush=True)
+    return rows
+
+
+def measure_long() -> list[dict]:
+    """Each of :data:`LONG_WALKERS` walked from its fixed point for :data:`LONG_CAP` heel strikes
+    at :data:`LONG_SETTINGS`: the steps, how it ended, and the standard deviation of the step times
+    over the first and the last :data:`LONG_WINDOW` steps (ms; the model's step time beside)."""
+    rows = []
+    for name in LONG_WALKERS:
+        gait = find_gait(load_params(WALKERS[name]))
+        for contact_time, friction in LONG_SETTINGS:
+            t = time.perf_counter()
+            walk, outcome = _mujoco_walk(gait, gait.fixed_point, contact_time, friction, cap=LONG_CAP)
+            times = np.asarray(walk.step_times)
+            rows.append(dict(walker=name, contact_time_ms=1e3 * contact_time, friction=friction,
+                             steps=walk.steps, outcome=outcome, model_step_ms=round(1e3 * gait.step_time, 3),
+                             first_mean_ms=round(1e3 * float(np.mean(times[:LONG_WINDOW])), 3),
+                             first_std_ms=round(1e3 * float(np.std(times[:LONG_WINDOW])), 3),
+                             last_mean_ms=round(1e3 * float(np.mean(times[-LONG_WINDOW:])), 3),
+                             last_std_ms=round(1e3 * float(np.std(times[-LONG_WINDOW:])), 3),
+                             seconds=time.perf_counter() - t))
+            r = rows[-1]
+            print(f"{name} ({r['contact_time_ms']:g} ms, {friction:g}): {walk.steps} steps, {outcome}; step "
+                  f"time spread {r['first_std_ms']} -> {r['last_std_ms']} ms", flush=True)
     return rows
 
 
@@ -317,10 +356,18 @@ def main() -> None:
     parser.add_argument("--walker", choices=sorted(WALKERS), default=CURVE_WALKER,
                         help=f"with --curves, --plot-only: whose curves (default {CURVE_WALKER}; "
                              "another's go to docs/basin_mujoco_curves_WALKER.csv/png)")
+    parser.add_argument("--long", action="store_true",
+                        help=f"walk {', '.join(LONG_WALKERS)} {LONG_CAP} steps from their gaits "
+                             "(docs/basin_mujoco_long.csv)")
     parser.add_argument("--launches", type=Path, metavar="P.toml",
                         help="this walker's hand launches in both engines instead (docs/launch_mujoco_P.csv)")
     args = parser.parse_args()
     start = time.perf_counter()
+    if args.long:
+        rows = measure_long()
+        _write(HERE / "basin_mujoco_long.csv", rows)
+        print(f"wrote docs/basin_mujoco_long.csv ({len(rows)} rows) in {time.perf_counter() - start:.0f} s")
+        return
     if args.launches:
         rows = measure_launches(args.launches)
         out = HERE / f"launch_mujoco_{args.launches.stem}.csv"

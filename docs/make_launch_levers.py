@@ -49,6 +49,15 @@ data/params/launch-toy.toml with its header written by hand. Output docs/launch_
 Run (about 3 minutes)::
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python docs/make_launch_levers.py --slope
+
+``--slope-of P.toml`` follows another walker instead (its ``[gait] start`` near its fixed point),
+``--slope-range LOW:HIGH`` over those slopes (reached from its own slope by Newton in steps of
+:data:`SLOPE_STEP`), writing ``--slope-csv`` and ``--slope-toml``. docs/launch_clear_toy.toml,
+data/params/launch-clear-toy.toml with its header written by hand, is (1 minute)::
+
+    OPENBLAS_NUM_THREADS=1 .venv/bin/python docs/make_launch_levers.py --slope \
+        --slope-of docs/launch_clear_1mm_best.toml --slope-range 0.0072:0.0090 \
+        --slope-csv docs/launch_clear_slope.csv --slope-toml docs/launch_clear_toy.toml
 """
 
 from __future__ import annotations
@@ -166,21 +175,30 @@ def release_rows() -> list[dict]:
     return rows
 
 
-def slope_rows() -> tuple[list[dict], list]:
-    """:data:`DESIGN` followed down in slope (the module's docstring): the rows, and the gaits."""
+def design_35044():
+    """:data:`DESIGN` of docs/launch_push.csv: its walker and logged fixed point."""
     base = load_params(HERE / "launch_converging.toml")
     row = next(r for r in read_rows(HERE / "launch_push.csv") if int(r["design"]) == DESIGN)
-    params = logged_params(base, row)
-    z = np.array([float(row[f"z{i}"]) for i in range(8)])
+    return logged_params(base, row), np.array([float(row[f"z{i}"]) for i in range(8)])
+
+
+def slope_rows(params, z: np.ndarray, low: float = SLOPE_LOW,
+               high: float | None = None) -> tuple[list[dict], list]:
+    """A walker (``z`` near its fixed point) followed in slope (the module's docstring) on the grid
+    of :data:`SLOPE_STEP` from ``high`` (default: the grid point at or below its own slope) down to
+    ``low``, reached from its own slope by Newton in grid steps: the rows, and the gaits."""
     rows, gaits = [], []
-    n = int(round((params.slope - SLOPE_LOW) / SLOPE_STEP))
-    top = SLOPE_LOW + n * SLOPE_STEP  # the grid of SLOPE_STEP below the design's own slope
-    for k, slope in enumerate([params.slope, *(top - i * SLOPE_STEP for i in range(n + 1))]):
+    n = int(round(((params.slope if high is None else high) - low) / SLOPE_STEP))
+    top = low + n * SLOPE_STEP
+    up = int(np.ceil((top - params.slope) / SLOPE_STEP - 1e-9))  # grid steps up to ``top`` first
+    path = [params.slope, *(params.slope + (top - params.slope) * i / up for i in range(1, up))]
+    recorded = [top - i * SLOPE_STEP for i in range(n + 1)]
+    for k, slope in enumerate([*path, *recorded]):
         here = params.replace(slope=float(round(slope, 10)))
         gait = solve_fixed_point(Walker(here), z)
         z = gait.fixed_point
-        if k == 0:
-            continue  # the design itself: only the start of the path
+        if k < len(path):
+            continue  # the design itself and the way up: only the start of the path
         tips = [m * gait.lean_amplitude for m in SLOPE_MULTIPLES]
         launch = hand_launch(here, tips, gait=gait)
         out = {"slope": here.slope, "max_abs_eigenvalue": gait.max_abs_eigenvalue,
@@ -216,23 +234,41 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--releases", action="store_true", help="the releases instead of the levers")
     parser.add_argument("--slope", action="store_true", help="design 35044 in slope instead of the levers")
+    parser.add_argument("--slope-of", type=Path, default=None, metavar="P.toml",
+                        help="with --slope: this walker (its [gait] start near its fixed point) instead")
+    parser.add_argument("--slope-range", default=None, metavar="LOW:HIGH",
+                        help=f"with --slope: the slopes scanned (rad; default {SLOPE_LOW:g} to its own)")
+    parser.add_argument("--slope-csv", type=Path, default=HERE / "launch_toy_slope.csv")
+    parser.add_argument("--slope-toml", type=Path, default=HERE / "launch_toy.toml")
     args = parser.parse_args()
     if args.slope:
-        rows, gaits = slope_rows()
-        write_rows(HERE / "launch_toy_slope.csv", rows, SLOPE_COLUMNS)
+        low, high = SLOPE_LOW, None
+        if args.slope_range is not None:
+            try:
+                low, high = (float(v) for v in args.slope_range.split(":"))
+            except ValueError:
+                parser.error(f"--slope-range must be LOW:HIGH in rad, got {args.slope_range!r}")
+        if args.slope_of is None:
+            params, z = design_35044()
+            what = f"Design {DESIGN} of docs/launch_push.csv"
+        else:
+            params = load_params(args.slope_of)
+            z, what = np.array(params.gait_start), f"{args.slope_of.name}"
+        rows, gaits = slope_rows(params, z, low, high)
+        write_rows(args.slope_csv, rows, SLOPE_COLUMNS)
         first, last = launch_window(rows)
         if last < first:
             print("no slope where both launches converge")
             return
         middle = (first + last) // 2
         gait = gaits[middle]
-        header = (f"Design {DESIGN} of docs/launch_push.csv at the middle of the slopes "
+        header = (f"{what} at the middle of the slopes "
                   f"{rows[last]['slope']:.4f}-{rows[first]['slope']:.4f} rad where its hand launch "
-                  "converges from 1.5 and 2.5 x lean (docs/make_launch_levers.py --slope).\n"
+                  f"converges from 1.5 and 2.5 x lean (docs/make_launch_levers.py --slope).\n"
                   "[gait] start is its fixed point.")
         save_params(dataclasses.replace(gait.params, gait_start=tuple(float(v) for v in gait.fixed_point)),
-                    HERE / "launch_toy.toml", header=header)
-        print(f"window {rows[last]['slope']:.4f}-{rows[first]['slope']:.4f} rad; wrote docs/launch_toy.toml "
+                    args.slope_toml, header=header)
+        print(f"window {rows[last]['slope']:.4f}-{rows[first]['slope']:.4f} rad; wrote {args.slope_toml} "
               f"(slope {gait.params.slope:.4f})")
         return
     if args.releases:

@@ -56,6 +56,12 @@ Options for a margin homotopy (off by default; then the walk and its outputs are
   point), and the finalists are built on it;
 - ``--clearance-to MM``: the clearance floor rises from ``--min-clearance`` to MM over the run,
   parents ranked as under the margin floor;
+- ``--soft-ceiling=START:END``: a design is feasible only if its gait, followed from the rigid one
+  through soft feet of 1, 2 and 4 ms (``soft_gaits`` of docs/make_soft_robust_design.py,
+  :data:`SOFT_STEPS` RK4 steps per tau), keeps its max |eigenvalue| at every tau at most the ceiling
+  (``why`` ``soft``; a soft gait Newton loses counts as make_soft_robust_design's ``LOST``, 3);
+  the ceiling falls linearly from START to END over ``--minutes``, parents ranked as under the
+  margin floor; the worst is logged as ``soft_max``, each tau as ``soft_1ms`` ...;
 - ``--feasible-only``: the log holds the feasible designs alone (the others are counted in the
   run's last line): docs/launch_push.csv is the run below so logged, 3449 of its 19065 logged
   designs.
@@ -93,6 +99,7 @@ from make_clearance_design import BOUNDS as CLEARANCE_BOUNDS  # noqa: E402
 from make_clearance_design import FREE  # noqa: E402
 from make_launch_margin import fmt_row, read_rows, write_rows  # noqa: E402
 from make_robust_design import LAUNCH_STEPS, fore_aft_margin, launch_walk  # noqa: E402
+from make_soft_robust_design import STEPS_PER_TAU, TAUS, soft_gaits, worst  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 START = HERE / "launch_converging.toml"
@@ -120,12 +127,18 @@ KICK_STEPS = 60
 #: this many steps from both tips (the best :data:`SEEDS` by score).
 SEED_STEPS = 30
 SEEDS = 30
+#: ``--soft-ceiling``: RK4 steps per tau of the soft strike (docs/make_soft_robust_design.py's
+#: STEPS_PER_TAU: 20 is not converged on these walkers, 80 is within 0.004 of 320).
+SOFT_STEPS = STEPS_PER_TAU
+SOFT_COLUMNS = [f"soft_{1e3 * tau:g}ms" for tau in TAUS[1:]]
 
 
-def columns(free: list[str], margin: bool = False) -> list[str]:
-    """The log's columns: ``margin_mm`` (the fore-aft margin) only with ``--margin-floor``."""
+def columns(free: list[str], margin: bool = False, soft: bool = False) -> list[str]:
+    """The log's columns: ``margin_mm`` (the fore-aft margin) only with ``--margin-floor``, the soft
+    gaits' eigenvalues only with ``--soft-ceiling``."""
     return ["design", "parent", "sigma", *free, "feasible", "why", *(["margin_mm"] if margin else []),
             "max_abs_eigenvalue", "clearance_mm", "lean_deg", "step_time",
+            *([*SOFT_COLUMNS, "soft_max"] if soft else []),
             *(f"{k}_{m:g}" for m in TIPS for k in ("steps", "reason", "dmin")), "score", "can_stand",
             *(f"z{i}" for i in range(8))]
 
@@ -153,7 +166,8 @@ class Search:
     def __init__(self, log: Path, rng: np.random.Generator, max_eigenvalue: float = 0.99,
                  min_clearance: float = 0.2e-3, free_more: bool = False,
                  margin_floor: tuple[float, float] | None = None, feasible_only: bool = False,
-                 start: Path = START, clearance_to: float | None = None):
+                 start: Path = START, clearance_to: float | None = None,
+                 soft_ceiling: tuple[float, float] | None = None):
         self.max_eigenvalue = max_eigenvalue
         self.min_clearance = min_clearance  # m
         self.free = FREE + MORE if free_more else list(FREE)
@@ -164,6 +178,9 @@ class Search:
         # walk() raises it from margin_floor[0] to margin_floor[1]. None: no floor (the default).
         self.margin_floor = margin_floor
         self.floor: float | None = None
+        # ``--soft-ceiling``: walk() lowers ``ceiling`` from soft_ceiling[0] to soft_ceiling[1].
+        self.soft_ceiling = soft_ceiling
+        self.ceiling: float | None = None
         self.frontier: dict | None = None  # the feasible design of largest margin that walks both tips
         self.base = load_params(start)
         # ``--clearance-to`` (m): walk() raises min_clearance from its start to this. None: fixed.
@@ -176,7 +193,8 @@ class Search:
         self.feasible_only = feasible_only  # --feasible-only: log the feasible designs alone
         self.counts: dict[str, int] = {}  # designs by why (stable: feasible), logged or not
         self.file = open(log, "w", newline="")  # noqa: SIM115 -- closed by close()
-        self.writer = csv.DictWriter(self.file, fieldnames=columns(self.free, margin_floor is not None))
+        self.writer = csv.DictWriter(self.file, fieldnames=columns(self.free, margin_floor is not None,
+                                                                          soft_ceiling is not None))
         self.writer.writeheader()
 
     def close(self) -> None:
@@ -214,6 +232,9 @@ class Search:
                 row["why"] = "eigenvalue"
             elif gait.clearance < self.min_clearance:
                 row["why"] = "clearance"
+            elif self.soft_ceiling is not None and self._soft(gait, row) > (
+                    math.inf if self.ceiling is None else self.ceiling):
+                row["why"] = "soft"
             else:
                 walker = Walker(params)
                 walks = [launch_walk(walker, gait, m * gait.lean_amplitude) for m in TIPS]
@@ -227,7 +248,7 @@ class Search:
                     if not stands:
                         self.best = row
                 self.archive.append({**row, "x": np.array(x, dtype=float), "z": gait.fixed_point,
-                                     "margin": margin})
+                                     "margin": margin, "soft": row.get("soft_max", math.nan)})
                 if self.margin_floor is not None and walks_both(row) and (
                         self.frontier is None or margin > self.frontier["margin"]):
                     self.frontier = self.archive[-1]
@@ -239,17 +260,27 @@ class Search:
             self.writer.writerow(fmt_row(row, 6, fixed_point_digits=10))
         return row
 
+    def _soft(self, gait, row: dict) -> float:
+        """The worst max |eigenvalue| of the gait on soft feet of 1-4 ms (logged in ``row``)."""
+        gaits = soft_gaits(gait, SOFT_STEPS)
+        for name, g in zip(SOFT_COLUMNS, gaits[1:], strict=True):
+            row[name] = "" if g is None else g.max_abs_eigenvalue
+        row["soft_max"] = worst(gaits[1:])
+        return row["soft_max"]
+
     def child(self) -> tuple[np.ndarray, np.ndarray, int, float]:
         """A parent drawn from the :data:`PARENTS` best, moved by a normal step."""
-        if self.floor is None and self.clearance_range is None:
+        if self.floor is None and self.clearance_range is None and self.ceiling is None:
             ranked = sorted(self.archive, key=lambda r: -r["score"])[:PARENTS]
         else:
-            # Under a rising floor (margin, clearance): the best of those above it, else those
-            # closest below it (shortfalls in mm).
+            # Under a rising floor (margin, clearance) or a falling soft ceiling: the best of those
+            # that meet it, else those closest to it (shortfalls in mm; the eigenvalue's x 1 mm).
             def shortfall(r: dict) -> float:
                 short = 0.0 if self.floor is None else min(0.0, r["margin"] - self.floor)
                 if self.clearance_range is not None:
                     short += min(0.0, 1e-3 * r["clearance_mm"] - self.min_clearance)
+                if self.ceiling is not None:
+                    short += 1e-3 * min(0.0, self.ceiling - r["soft"])
                 return -short
             ranked = sorted(self.archive, key=lambda r: (shortfall(r), -r["score"]))[:PARENTS]
         parent = ranked[self.rng.integers(len(ranked))]
@@ -290,6 +321,9 @@ def walk(search: Search, minutes: float, start_from: Path | None = None) -> None
         if search.margin_floor is not None:
             lo, hi = search.margin_floor
             search.floor = lo + (hi - lo) * progress
+        if search.soft_ceiling is not None:
+            lo, hi = search.soft_ceiling
+            search.ceiling = lo + (hi - lo) * progress
         if search.clearance_range is not None:
             lo, hi = search.clearance_range
             search.min_clearance = lo + (hi - lo) * progress
@@ -310,6 +344,11 @@ def walk(search: Search, minutes: float, start_from: Path | None = None) -> None
                 clear = [r for r in search.archive if 1e-3 * r["clearance_mm"] >= search.min_clearance]
                 line += (f"; clearance floor {1e3 * search.min_clearance:.3f} mm: {len(clear)} feasible "
                          f"above it, {sum(walks_both(r) for r in clear)} walk {SEED_STEPS}+ from both")
+            if search.ceiling is not None:
+                under = [r for r in search.archive if r["soft"] <= search.ceiling]
+                line += (f"; soft ceiling {search.ceiling:.4f}: {len(under)} feasible under it, "
+                         f"{sum(walks_both(r) for r in under)} walk {SEED_STEPS}+ from both; lowest soft "
+                         f"{min((r['soft'] for r in search.archive), default=math.nan):.4f}")
             if search.floor is not None:
                 above = [r for r in search.archive if r["margin"] >= search.floor]
                 f = search.frontier
@@ -428,6 +467,9 @@ def main() -> None:
     parser.add_argument("--margin-floor", default=None, metavar="START:END",
                         help="mm: designs whose fore-aft margin is below the floor are infeasible; the "
                              "floor rises linearly from START to END over --minutes")
+    parser.add_argument("--soft-ceiling", default=None, metavar="START:END",
+                        help="designs whose gait on soft feet of 1-4 ms has a max |eigenvalue| above the "
+                             "ceiling are infeasible; it falls linearly from START to END over --minutes")
     parser.add_argument("--finalists-csv", type=Path, default=HERE / "launch_search_finalists.csv")
     parser.add_argument("--best-toml", type=Path, default=HERE / "launch_search_best.toml")
     parser.add_argument("--start", type=Path, default=START,
@@ -441,19 +483,26 @@ def main() -> None:
     args = parser.parse_args()
     if args.start_from_log is not None and args.start_from_log.resolve() == args.log.resolve():
         parser.error("--start-from-log must differ from --log (the log is rewritten)")
-    floor = None
-    if args.margin_floor is not None:
+    def pair(text: str | None, option: str, unit: str, scale: float) -> tuple[float, float] | None:
+        """START:END of an option, times ``scale``; None when not given."""
+        if text is None:
+            return None
         try:
-            floor = tuple(1e-3 * float(v) for v in args.margin_floor.split(":"))
+            values = tuple(scale * float(v) for v in text.split(":"))
         except ValueError:
-            floor = ()
-        if len(floor) != 2:
-            parser.error(f"--margin-floor must be START:END in mm, got {args.margin_floor!r}")
+            values = ()
+        if len(values) != 2:
+            parser.error(f"{option} must be START:END{unit}, got {text!r}")
+        return values
+
+    floor = pair(args.margin_floor, "--margin-floor", " in mm", 1e-3)
+    ceiling = pair(args.soft_ceiling, "--soft-ceiling", "", 1.0)
     if args.minutes > 0:
         search = Search(args.log, np.random.default_rng(args.seed), args.max_eigenvalue,
                         1e-3 * args.min_clearance, free_more=args.free_more, margin_floor=floor,
                         feasible_only=args.feasible_only, start=args.start,
-                        clearance_to=None if args.clearance_to is None else 1e-3 * args.clearance_to)
+                        clearance_to=None if args.clearance_to is None else 1e-3 * args.clearance_to,
+                        soft_ceiling=ceiling)
         try:
             walk(search, args.minutes, args.start_from_log)
         finally:
