@@ -58,6 +58,18 @@ data/params/launch-clear-toy.toml with its header written by hand, is (1 minute)
     OPENBLAS_NUM_THREADS=1 .venv/bin/python docs/make_launch_levers.py --slope \
         --slope-of docs/launch_clear_1mm_best.toml --slope-range 0.0072:0.0090 \
         --slope-csv docs/launch_clear_slope.csv --slope-toml docs/launch_clear_toy.toml
+
+``--soft-slope P.toml``: where on the ramp is the walker's gait stable on soft feet? The gait
+followed (rigid, by Newton in steps of :data:`SOFT_SLOPE_STEP`) from the walker's slope up to
+:data:`SOFT_SLOPE_HIGH`; there, for each tau of :data:`SOFT_TAUS`, onto soft feet (``soft_heel``,
+tau raised in steps of :data:`SOFT_TAU_STEP`, :data:`SOFT_STEPS` RK4 steps per tau); then down in
+slope in steps of :data:`SOFT_SLOPE_STEP` to :data:`SOFT_SLOPE_LOW` or until Newton loses the gait.
+Output (``--soft-slope-csv``, default docs/launch_clear_soft_slope.csv): per tau and slope the max
+|eigenvalue| and the largest real eigenvalue (a real eigenvalue reaching +1 is a fold, where the
+gait ends), and per tau a row ``lost`` at the first slope where Newton lost it. Run (4 minutes)::
+
+    OPENBLAS_NUM_THREADS=1 .venv/bin/python docs/make_launch_levers.py \
+        --soft-slope data/params/launch-clear-toy.toml
 """
 
 from __future__ import annotations
@@ -112,6 +124,14 @@ SLOPE_STEP = 1e-4
 SLOPE_MULTIPLES = (0.5, 1.0, 1.5, 2.0, 2.5, 3.0)
 SLOPE_COLUMNS = ["slope", "max_abs_eigenvalue", "clearance_mm", "lean_deg", "step_time", "can_stand",
                  *(f"{k}_{m:g}" for m in SLOPE_MULTIPLES for k in ("steps", "reason"))]
+SOFT_TAUS = (0.0, 1e-3, 2e-3, 4e-3)  # s: rigid and issue 44's soft contacts
+SOFT_TAU_STEP = 2.5e-4  # s
+SOFT_STEPS = 80  # RK4 steps per tau: docs/make_soft_robust_design.py's STEPS_PER_TAU
+SOFT_SLOPE_HIGH = 0.016  # rad: launch-clear-toy's 1.5 x launch converges up to here, its 2.5 x does not
+SOFT_SLOPE_LOW = 0.006  # rad
+SOFT_SLOPE_STEP = 2e-4  # rad
+SOFT_SLOPE_COLUMNS = ["tau_ms", "slope", "status", "max_abs_eigenvalue", "largest_real_eigenvalue",
+                      "step_time"]
 COLUMNS = ["lever", "value", "max_abs_eigenvalue", "clearance_mm", "lean_deg", "step_time",
            *(f"{k}_{m:g}" for m in MULTIPLES for k in ("steps", "reason"))]
 
@@ -214,6 +234,40 @@ def slope_rows(params, z: np.ndarray, low: float = SLOPE_LOW,
     return rows, gaits
 
 
+def soft_slope_rows(params) -> list[dict]:
+    """The walker's gait on soft feet along the slope (the module's docstring, ``--soft-slope``)."""
+    z = np.array(params.gait_start)
+    grid = np.arange(params.slope, SOFT_SLOPE_HIGH + 0.5 * SOFT_SLOPE_STEP, SOFT_SLOPE_STEP)
+    for slope in [*grid[1:], SOFT_SLOPE_HIGH]:
+        z = solve_fixed_point(Walker(params.replace(slope=float(slope))), z).fixed_point
+    top, rows = z, []
+    slopes = np.arange(SOFT_SLOPE_HIGH, SOFT_SLOPE_LOW - 0.5 * SOFT_SLOPE_STEP, -SOFT_SLOPE_STEP)
+    for tau in SOFT_TAUS:
+        def walker(slope, t=tau):
+            return Walker(params.replace(slope=float(slope), **{"effects.soft_heel": float(t)}),
+                          soft_steps_per_tau=SOFT_STEPS)
+        z = top
+        for t in np.arange(SOFT_TAU_STEP, tau + 0.5 * SOFT_TAU_STEP, SOFT_TAU_STEP):
+            z = solve_fixed_point(walker(SOFT_SLOPE_HIGH, t), z).fixed_point
+        for slope in slopes:
+            row = {"tau_ms": 1e3 * tau, "slope": round(float(slope), 10)}
+            try:
+                gait = solve_fixed_point(walker(slope), z)
+            except (GaitNotFound, StepFailure):
+                rows.append({**row, "status": "lost"})
+                print(f"tau {1e3 * tau:g} ms: lost at slope {slope:.4f}", flush=True)
+                break
+            z = gait.fixed_point
+            rows.append({**row, "status": "found", "max_abs_eigenvalue": gait.max_abs_eigenvalue,
+                         "largest_real_eigenvalue": float(np.max(gait.eigenvalues.real)),
+                         "step_time": gait.step_time})
+        stable = [r["slope"] for r in rows if r["tau_ms"] == 1e3 * tau and r["status"] == "found"
+                  and r["max_abs_eigenvalue"] < 1]
+        print(f"tau {1e3 * tau:g} ms: stable on "
+              + (f"{min(stable):.4f}-{max(stable):.4f} rad" if stable else "no slope followed"), flush=True)
+    return rows
+
+
 def launch_window(rows: list[dict]) -> tuple[int, int]:
     """(first, last) index of the longest run of rows where the launches from 1.5 and 2.5 x lean
     both converge (the first such run of that length)."""
@@ -238,9 +292,15 @@ def main() -> None:
                         help="with --slope: this walker (its [gait] start near its fixed point) instead")
     parser.add_argument("--slope-range", default=None, metavar="LOW:HIGH",
                         help=f"with --slope: the slopes scanned (rad; default {SLOPE_LOW:g} to its own)")
+    parser.add_argument("--soft-slope", type=Path, default=None, metavar="P.toml",
+                        help="this walker's gait on soft feet of 1-4 ms along the slope instead")
+    parser.add_argument("--soft-slope-csv", type=Path, default=HERE / "launch_clear_soft_slope.csv")
     parser.add_argument("--slope-csv", type=Path, default=HERE / "launch_toy_slope.csv")
     parser.add_argument("--slope-toml", type=Path, default=HERE / "launch_toy.toml")
     args = parser.parse_args()
+    if args.soft_slope is not None:
+        write_rows(args.soft_slope_csv, soft_slope_rows(load_params(args.soft_slope)), SOFT_SLOPE_COLUMNS)
+        return
     if args.slope:
         low, high = SLOPE_LOW, None
         if args.slope_range is not None:
