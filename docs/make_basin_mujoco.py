@@ -260,9 +260,10 @@ def curves_path(walker: str, suffix: str) -> Path:
                    else f"basin_mujoco_curves_{walker}.{suffix}")
 
 
-def measure_curves(walker: str = CURVE_WALKER) -> list[dict]:
-    """One row per push size, direction and engine setting (the module's docstring)."""
-    gait = find_gait(load_params(WALKERS[walker]))
+def measure_curves(name: str = CURVE_WALKER) -> list[dict]:
+    """One row per push size, direction and engine setting (the module's docstring), for the
+    walker :data:`WALKERS` calls ``name``."""
+    gait = find_gait(load_params(WALKERS[name]))
     params, walker = gait.params, Walker(gait.params)
     directions = random_directions(params, gait, CURVE_DIRECTIONS, CURVE_SEED)
     rows = []
@@ -273,14 +274,14 @@ def measure_curves(walker: str = CURVE_WALKER) -> list[dict]:
             t = time.perf_counter()
             steps, reason, scuffs, _, _ = _model_walk(gait, walker, z0)
             recovery = recovers(params, z0, gait, walker=walker)
-            rows.append(dict(walker=walker, size=size, direction=k, engine="model", contact_time_ms="",
+            rows.append(dict(walker=name, size=size, direction=k, engine="model", contact_time_ms="",
                              friction="", walked=steps == CAP, steps=steps, outcome=reason,
                              recovered=recovery.recovered, bounces=0, scuffs=scuffs,
                              seconds=round(time.perf_counter() - t, 4)))
             for contact_time, friction in CURVE_SETTINGS:
                 t = time.perf_counter()
                 walk, outcome = _mujoco_walk(gait, z0, contact_time, friction)
-                rows.append(dict(walker=walker, size=size, direction=k, engine="mujoco",
+                rows.append(dict(walker=name, size=size, direction=k, engine="mujoco",
                                  contact_time_ms=1e3 * contact_time, friction=friction,
                                  walked=walk.status == "completed", steps=walk.steps, outcome=outcome,
                                  recovered="", bounces=walk.bounces, scuffs=walk.scuffs,
