@@ -94,9 +94,10 @@ from toywalk.model.gait import GaitNotFound
 from toywalk.model.walker import StepFailure
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from make_launch_margin import read_rows, write_rows  # noqa: E402
+from make_launch_margin import parse_pair, read_rows, write_rows  # noqa: E402
 from make_launch_search import logged_params  # noqa: E402
 from make_robust_design import launch_walk  # noqa: E402
+from make_soft_robust_design import STEPS_PER_TAU  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 START = HERE / "launch_search_best.toml"
@@ -126,7 +127,7 @@ SLOPE_COLUMNS = ["slope", "max_abs_eigenvalue", "clearance_mm", "lean_deg", "ste
                  *(f"{k}_{m:g}" for m in SLOPE_MULTIPLES for k in ("steps", "reason"))]
 SOFT_TAUS = (0.0, 1e-3, 2e-3, 4e-3)  # s: rigid and issue 44's soft contacts
 SOFT_TAU_STEP = 2.5e-4  # s
-SOFT_STEPS = 80  # RK4 steps per tau: docs/make_soft_robust_design.py's STEPS_PER_TAU
+SOFT_STEPS = STEPS_PER_TAU  # RK4 steps per tau (80: docs/make_soft_robust_design.py)
 SOFT_SLOPE_HIGH = 0.016  # rad: launch-clear-toy's 1.5 x launch converges up to here, its 2.5 x does not
 SOFT_SLOPE_LOW = 0.006  # rad
 SOFT_SLOPE_STEP = 2e-4  # rad
@@ -302,12 +303,8 @@ def main() -> None:
         write_rows(args.soft_slope_csv, soft_slope_rows(load_params(args.soft_slope)), SOFT_SLOPE_COLUMNS)
         return
     if args.slope:
-        low, high = SLOPE_LOW, None
-        if args.slope_range is not None:
-            try:
-                low, high = (float(v) for v in args.slope_range.split(":"))
-            except ValueError:
-                parser.error(f"--slope-range must be LOW:HIGH in rad, got {args.slope_range!r}")
+        low, high = (parse_pair(parser, args.slope_range, "--slope-range", "LOW:HIGH in rad")
+                     or (SLOPE_LOW, None))
         if args.slope_of is None:
             params, z = design_35044()
             what = f"Design {DESIGN} of docs/launch_push.csv"

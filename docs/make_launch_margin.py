@@ -369,6 +369,22 @@ def write_rows(path: Path, rows: list[dict], columns: list[str] | None = None, d
         writer.writerows(fmt_row(r, digits, fixed_point_digits) for r in rows)
 
 
+def parse_pair(parser, text: str | None, option: str, form: str = "START:END",
+               scale: float = 1.0) -> tuple[float, float] | None:
+    """The two numbers of an option written ``A:B`` (``form`` names them in the error), times
+    ``scale``; None when the option was not given. Anything else ends the run with ``parser``'s
+    one-line usage error."""
+    if text is None:
+        return None
+    try:
+        values = tuple(scale * float(v) for v in text.split(":"))
+    except ValueError:
+        values = ()
+    if len(values) != 2:
+        parser.error(f"{option} must be {form}, got {text!r}")
+    return values
+
+
 def read_rows(path: Path) -> list[dict]:
     """A CSV's rows, every cell that reads as a number a float (the others as they are)."""
     with open(path) as f:

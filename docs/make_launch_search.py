@@ -97,7 +97,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 # search walks it.
 from make_clearance_design import BOUNDS as CLEARANCE_BOUNDS  # noqa: E402
 from make_clearance_design import FREE  # noqa: E402
-from make_launch_margin import fmt_row, read_rows, write_rows  # noqa: E402
+from make_launch_margin import fmt_row, parse_pair, read_rows, write_rows  # noqa: E402
 from make_robust_design import LAUNCH_STEPS, fore_aft_margin, launch_walk  # noqa: E402
 from make_soft_robust_design import STEPS_PER_TAU, TAUS, soft_gaits, worst  # noqa: E402
 
@@ -483,20 +483,8 @@ def main() -> None:
     args = parser.parse_args()
     if args.start_from_log is not None and args.start_from_log.resolve() == args.log.resolve():
         parser.error("--start-from-log must differ from --log (the log is rewritten)")
-    def pair(text: str | None, option: str, unit: str, scale: float) -> tuple[float, float] | None:
-        """START:END of an option, times ``scale``; None when not given."""
-        if text is None:
-            return None
-        try:
-            values = tuple(scale * float(v) for v in text.split(":"))
-        except ValueError:
-            values = ()
-        if len(values) != 2:
-            parser.error(f"{option} must be START:END{unit}, got {text!r}")
-        return values
-
-    floor = pair(args.margin_floor, "--margin-floor", " in mm", 1e-3)
-    ceiling = pair(args.soft_ceiling, "--soft-ceiling", "", 1.0)
+    floor = parse_pair(parser, args.margin_floor, "--margin-floor", "START:END in mm", 1e-3)
+    ceiling = parse_pair(parser, args.soft_ceiling, "--soft-ceiling")
     if args.minutes > 0:
         search = Search(args.log, np.random.default_rng(args.seed), args.max_eigenvalue,
                         1e-3 * args.min_clearance, free_more=args.free_more, margin_floor=floor,
